@@ -1,0 +1,36 @@
+# rsmcheck: `make test` runs everything CI runs; `make report` writes out/report.html.
+# The virtual environment lives in .venv and is (re)installed from pyproject.toml.
+
+PYTHON ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+PYTEST_ARGS ?=
+# Re-install when pyproject.toml changes or a top-level package appears (the editable
+# install maps the packages that exist when it runs).
+PACKAGE_INITS := $(wildcard rsmcheck/__init__.py reference_model/__init__.py \
+	exudyn_model/__init__.py pinocchio_check/__init__.py cases/__init__.py report/__init__.py)
+
+.PHONY: venv test report clean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml $(PACKAGE_INITS)
+	test -x $(VPY) || $(PYTHON) -m venv $(VENV)
+	$(VPY) -m pip install -e '.[test]'
+	touch $(STAMP)
+
+# pytest exit code 5 = no tests collected: make fails (as for any non-zero code) and says why.
+test: venv
+	@status=0; $(VPY) -m pytest $(PYTEST_ARGS) || status=$$?; \
+	if [ $$status -eq 5 ]; then echo "make test: FAILED: pytest collected no tests (exit 5)" >&2; \
+	elif [ $$status -ne 0 ]; then echo "make test: FAILED: pytest exited with $$status" >&2; fi; \
+	exit $$status
+
+report: venv
+	mkdir -p out
+	$(VENV)/bin/rsmcheck report --out out/report.html
+
+clean:
+	rm -rf out build *.egg-info .pytest_cache
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +

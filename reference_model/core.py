@@ -1,0 +1,566 @@
+"""Compiled core of the Kane–Newton reference model: plain arrays in, plain arrays out.
+
+Read next to the paper (Sect. 2, Appendix) and docs/physics.md.  Everything here is a
+`numba.njit` function on arrays; `reference_model.model` builds the arrays and gives
+them names.
+
+Coordinates (docs/physics.md §1)
+-------------------------------
+q_m  = [x_B, y_B, θ_B, θ_J1..θ_J6, A_link1.., .., A_link6..]      (nq)   eq. (4) ordering
+X_T  = [x_T, y_T, θ_T]                                             (3)
+θ_m  = six motor angles, relative to the parent body               (6)
+Y    = [q_m, X_T] (ny = nq + 3),  Y* = [Y, θ_m] (ns = ny + 6)      eq. (7)
+ODE state x = [Y*, Ẏ*, r_O (2), v_O (2), m_used]: r_O, v_O are the co-moving reference
+point (SPEC §3.4), m_used the propellant burnt.
+
+Newtonian coordinates of a link (the X_m of eq. A.1): X_i = [R_i (2), θ_i, A_i (n_i)] —
+origin of the link frame (its proximal pin), frame angle, modal amplitudes.  A material
+point at abscissa ξ is at r = R + A(θ) u(ξ), u = (ξ, w(ξ)), w = Σ A_j φ_j (eq. 1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# --- indices into the scalar parameter vector `sc` -----------------------------------
+S_MB0 = 0  # base mass at t = 0 [kg]
+S_JB = 1  # base inertia about COM [kg m²]
+S_MT = 2  # target mass
+S_JT = 3  # target inertia about COM
+S_ML = 4  # link mass
+S_L = 5  # link length
+S_RHO = 6  # ρA [kg/m]
+S_I0 = 7  # ∫ρ ξ² dξ = m L²/3, link about its pin
+S_JEX = 8  # rotary inertia beyond the slender beam, on the frame rotation
+S_ETA = 9  # Kelvin–Voigt coefficient η [s]
+S_BM = 10  # motor inertia B_m
+S_KM = 11  # K_m
+S_CM = 12  # C_m
+S_ALPHA = 13  # Baumgarte α
+S_BETA = 14  # Baumgarte β
+S_WLIM = 15  # wrist bistop half-range
+S_WK = 16  # wrist bistop stiffness
+S_WC = 17  # wrist bistop damping
+S_MU = 18  # Earth μ
+S_ISPG0 = 19  # Isp·g0 [m/s]
+S_ORBIT = 20  # 1.0: tidal gravity on, 0.0: off
+S_MTOT0 = 21  # total mass at t = 0
+N_SCALARS = 22
+
+# --- inputs u (held constant over a control period) ----------------------------------
+U_TAU_M = 0  # 6 motor torques (after saturation)
+U_TAU_B = 6  # base torque
+U_THRUST = 7  # thrust magnitude along +x_B
+N_INPUTS = 8
+
+N_LINKS = 6
+
+
+@njit(cache=True)
+def _tidal(rO, rel):
+    """Exact tidal acceleration g(r_O + ρ) − g(r_O), g(r) = −μ r/|r|³ (μ applied by caller).
+
+    Written without cancellation (Encke/Battin form): with q = (2 r_O·ρ + ρ·ρ)/|r_O|²,
+    F = 1 − (1 + q)^(−3/2) = −expm1(−1.5 log1p(q)),  Δg/μ = (F (r_O + ρ) − ρ)/|r_O|³.
+    """
+    r2 = rO[0] * rO[0] + rO[1] * rO[1]
+    qv = (2.0 * (rO[0] * rel[0] + rO[1] * rel[1]) + rel[0] * rel[0] + rel[1] * rel[1]) / r2
+    f = -math.expm1(-1.5 * math.log1p(qv))
+    r3 = r2 * math.sqrt(r2)
+    return (f * (rO[0] + rel[0]) - rel[0]) / r3, (f * (rO[1] + rel[1]) - rel[1]) / r3
+
+
+@njit(cache=True)
+def _tidal_potential(rO, rel):
+    """Tidal potential per unit mass / μ whose gradient in ρ is `_tidal` (fixed r_O).
+
+    U/μ = −1/|r_O+ρ| + 1/|r_O| − r_O·ρ/|r_O|³ = (h(q) + |ρ|²/(2|r_O|²))/|r_O| with
+    h(q) = 1 − (1+q)^(−1/2) − q/2, evaluated by its series for small q.
+    """
+    r2 = rO[0] * rO[0] + rO[1] * rO[1]
+    rho2 = rel[0] * rel[0] + rel[1] * rel[1]
+    qv = (2.0 * (rO[0] * rel[0] + rO[1] * rel[1]) + rho2) / r2
+    if abs(qv) < 1e-3:
+        h = qv * qv * (-3.0 / 8.0 + qv * (5.0 / 16.0 + qv * (-35.0 / 128.0 + qv * 63.0 / 256.0)))
+    else:
+        h = 1.0 - 1.0 / math.sqrt(1.0 + qv) - 0.5 * qv
+    return -(h + 0.5 * rho2 / r2) / math.sqrt(r2)
+
+
+@njit(cache=True)
+def _bistop(psi, psid, lim, k, c):
+    """Wrist bistop: one-sided spring-damper beyond ±lim on the relative rotation ψ."""
+    if psi > lim:
+        return -k * (psi - lim) - c * psid
+    if psi < -lim:
+        return -k * (psi + lim) - c * psid
+    return 0.0
+
+
+@njit(cache=True)
+def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
+    """Frames of the six links and the two end effectors, with Jacobians (A.1) and J̇q̇ (A.2).
+
+    Returns th[6], om[6]                 frame angles and rates
+            R[6,2], Rd[6,2]              frame origins (proximal pins) and their velocities
+            JR[6,2,nq], Jth[6,nq]        ∂R/∂q, ∂θ/∂q
+            cR[6,2]                      J̇q̇ of R (the part of R̈ not proportional to q̈)
+            rE[2,2], rEd[2,2], JE[2,2,nq], cE[2,2]   the same for the end effectors
+    Recursion along an arm (i-th link, d_i = (L, w_i(L)) its distal pin in its frame):
+        θ_i = θ_B + Σ_{s≤i} θ_Js,     R_{i+1} = R_i + A(θ_i) d_i,
+        R̈_{i+1} = R̈_i + θ̈_i A S d_i + A e_y ẅ_i(L) − θ̇_i² A d_i + 2 θ̇_i A S e_y ẇ_i(L).
+    """
+    nq = q.shape[0]
+    L = sc[S_L]
+    th = np.zeros(N_LINKS)
+    om = np.zeros(N_LINKS)
+    R = np.zeros((N_LINKS, 2))
+    Rd = np.zeros((N_LINKS, 2))
+    JR = np.zeros((N_LINKS, 2, nq))
+    Jth = np.zeros((N_LINKS, nq))
+    cR = np.zeros((N_LINKS, 2))
+    rE = np.zeros((2, 2))
+    rEd = np.zeros((2, 2))
+    JE = np.zeros((2, 2, nq))
+    cE = np.zeros((2, 2))
+    cb = math.cos(q[2])
+    sb = math.sin(q[2])
+    wb = qd[2]
+    for k in range(2):
+        # root of arm k: r_B + A(θ_B) r_M  (base frame mount point)
+        mx = cb * mount[k, 0] - sb * mount[k, 1]
+        my = sb * mount[k, 0] + cb * mount[k, 1]
+        px = q[0] + mx
+        py = q[1] + my
+        vx = qd[0] - wb * my
+        vy = qd[1] + wb * mx
+        Jp = np.zeros((2, nq))
+        Jp[0, 0] = 1.0
+        Jp[1, 1] = 1.0
+        Jp[0, 2] = -my
+        Jp[1, 2] = mx
+        cx = -wb * wb * mx
+        cy = -wb * wb * my
+        Jt = np.zeros(nq)
+        Jt[2] = 1.0
+        theta = q[2]
+        for s in range(3):
+            i = 3 * k + s
+            j = 3 + i
+            theta = theta + q[j]
+            Jt = Jt.copy()
+            Jt[j] = 1.0
+            omega = 0.0
+            for c in range(nq):
+                omega += Jt[c] * qd[c]
+            th[i] = theta
+            om[i] = omega
+            R[i, 0] = px
+            R[i, 1] = py
+            Rd[i, 0] = vx
+            Rd[i, 1] = vy
+            JR[i] = Jp
+            Jth[i] = Jt
+            cR[i, 0] = cx
+            cR[i, 1] = cy
+            # distal pin d = (L, w(L)) and its rate (0, ẇ(L))
+            wt = 0.0
+            wtd = 0.0
+            for a in range(nm[i]):
+                wt += phi_tip[basis[i], a] * q[mo[i] + a]
+                wtd += phi_tip[basis[i], a] * qd[mo[i] + a]
+            c = math.cos(theta)
+            sn = math.sin(theta)
+            dx = c * L - sn * wt  # A d
+            dy = sn * L + c * wt
+            eyx = -sn  # A e_y
+            eyy = c
+            Jn = Jp.copy()
+            for col in range(nq):
+                Jn[0, col] += -dy * Jt[col]  # A S d = (−(A d)_y, (A d)_x)
+                Jn[1, col] += dx * Jt[col]
+            for a in range(nm[i]):
+                Jn[0, mo[i] + a] += eyx * phi_tip[basis[i], a]
+                Jn[1, mo[i] + a] += eyy * phi_tip[basis[i], a]
+            px = px + dx
+            py = py + dy
+            vx = vx - omega * dy + eyx * wtd
+            vy = vy + omega * dx + eyy * wtd
+            # −θ̇² A d + 2 θ̇ A S e_y ẇ(L),  A S e_y = −A e_x = (−c, −s)
+            cx = cx - omega * omega * dx - 2.0 * omega * c * wtd
+            cy = cy - omega * omega * dy - 2.0 * omega * sn * wtd
+            Jp = Jn
+        rE[k, 0] = px
+        rE[k, 1] = py
+        rEd[k, 0] = vx
+        rEd[k, 1] = vy
+        JE[k] = Jp
+        cE[k, 0] = cx
+        cE[k, 1] = cy
+    return th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE
+
+
+@njit(cache=True)
+def link_newton(i, q, qd, th, om, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, sc):
+    """Floating-frame mass matrix M_X and force V + elastic of link i (eq. A.3 for one body).
+
+    With S1 = ∫ρ u dξ = (m L/2, φ̄·A) and ṙ = Ṙ + θ̇ A S u + A e_y Φ Ȧ:
+        M_RR = m I,  M_Rθ = A S S1,  M_RA = A e_y φ̄ᵀ,
+        M_θθ = ∫ρ|u|² + J_extra = I_0 + Aᵀ M_ff A + J_extra,  M_θA = ∫ρ ξ Φ,  M_AA = M_ff.
+    The part of r̈ not linear in Ẍ is −θ̇² A u + 2 θ̇ A S e_y Φ Ȧ, whence
+        V_R = θ̇² A S1 − 2 θ̇ A S e_y (φ̄·Ȧ),  V_θ = −2 θ̇ Aᵀ M_ff Ȧ,  V_A = θ̇² M_ff A,
+    and the elastic and Kelvin–Voigt forces −K_ff A − η K_ff Ȧ on the amplitudes.
+    """
+    n = nm[i]
+    b = basis[i]
+    m = sc[S_ML]
+    c = math.cos(th[i])
+    s = math.sin(th[i])
+    w = om[i]
+    nx = 3 + n
+    M = np.zeros((nx, nx))
+    V = np.zeros(nx)
+    s1x = 0.5 * m * sc[S_L]
+    s1y = 0.0
+    pbd = 0.0  # φ̄·Ȧ
+    for a in range(n):
+        s1y += phi_bar[b, a] * q[mo[i] + a]
+        pbd += phi_bar[b, a] * qd[mo[i] + a]
+    # A S S1 = A (−S1y, S1x)
+    ass_x = c * (-s1y) - s * s1x
+    ass_y = s * (-s1y) + c * s1x
+    M[0, 0] = m
+    M[1, 1] = m
+    M[0, 2] = ass_x
+    M[1, 2] = ass_y
+    M[2, 0] = ass_x
+    M[2, 1] = ass_y
+    mtt = sc[S_I0] + sc[S_JEX]
+    for a in range(n):
+        M[0, 3 + a] = -s * phi_bar[b, a]
+        M[1, 3 + a] = c * phi_bar[b, a]
+        M[3 + a, 0] = M[0, 3 + a]
+        M[3 + a, 1] = M[1, 3 + a]
+        M[2, 3 + a] = phi_x[b, a]
+        M[3 + a, 2] = phi_x[b, a]
+        for e in range(n):
+            M[3 + a, 3 + e] = m_ff[b, a, e]
+            mtt += q[mo[i] + a] * m_ff[b, a, e] * q[mo[i] + e]
+    M[2, 2] = mtt
+    # V_R = θ̇² A S1 − 2 θ̇ A S e_y (φ̄·Ȧ);  A S1 = (c S1x − s S1y, s S1x + c S1y); A S e_y = (−c, −s)
+    V[0] = w * w * (c * s1x - s * s1y) + 2.0 * w * c * pbd
+    V[1] = w * w * (s * s1x + c * s1y) + 2.0 * w * s * pbd
+    vth = 0.0
+    for a in range(n):
+        mfa = 0.0
+        mfd = 0.0
+        kf = 0.0
+        for e in range(n):
+            mfa += m_ff[b, a, e] * q[mo[i] + e]
+            mfd += m_ff[b, a, e] * qd[mo[i] + e]
+            kf += k_ff[b, a, e] * (q[mo[i] + e] + sc[S_ETA] * qd[mo[i] + e])
+        vth += -2.0 * w * q[mo[i] + a] * mfd
+        V[3 + a] = w * w * mfa - kf
+    V[2] = vth
+    return M, V
+
+
+@njit(cache=True)
+def _field_link(i, q, th, R, rO, aunif, nm, mo, basis, phi_bar, phi_g, x_g, w_g, sc, M):
+    """Generalised force of the acceleration field on link i, over its distributed mass.
+
+    The uniform part (thrust inertia of the reference point, −a_thr) is exact:
+    Q = M_X[:, R] a_unif.  The tidal part is integrated with Gauss points along the beam:
+    Q = Σ_g w_g ρ [I; (A S u_g)ᵀ; (A e_y φ_g)ᵀ] Δg(r_O, R + A u_g).
+    """
+    n = nm[i]
+    b = basis[i]
+    Q = np.zeros(3 + n)
+    for r in range(3 + n):
+        Q[r] = M[r, 0] * aunif[0] + M[r, 1] * aunif[1]
+    if sc[S_ORBIT] == 0.0:
+        return Q
+    c = math.cos(th[i])
+    s = math.sin(th[i])
+    rel = np.zeros(2)
+    rho = sc[S_RHO]
+    for g in range(x_g.shape[0]):
+        wg = 0.0
+        for a in range(n):
+            wg += phi_g[b, g, a] * q[mo[i] + a]
+        ux = x_g[g]
+        rel[0] = R[i, 0] + c * ux - s * wg
+        rel[1] = R[i, 1] + s * ux + c * wg
+        gx, gy = _tidal(rO, rel)
+        gx *= sc[S_MU] * rho * w_g[g]
+        gy *= sc[S_MU] * rho * w_g[g]
+        Q[0] += gx
+        Q[1] += gy
+        # A S u = (−(A u)_y, (A u)_x),  A u = (c ux − s wg, s ux + c wg)
+        Q[2] += -(s * ux + c * wg) * gx + (c * ux - s * wg) * gy
+        for a in range(n):
+            Q[3 + a] += phi_g[b, g, a] * (-s * gx + c * gy)
+    return Q
+
+
+@njit(cache=True)
+def assemble(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
+             mount, grasp_on, rho_G):
+    """The coupled system (3)/(6)–(12) at state x with inputs u.
+
+    Returns Mg (ny×ny), f (ny) = −CẎ + NL + u  (right-hand side of eq. 6 without W R),
+    the active constraint rows A (nc×ny), φ (nc), φ̇ (nc), B* (nc) of eqs. (8)–(12),
+    the motor accelerations of eq. (2), the joint torques u_J of eq. (5) and the wrist
+    torques, and the acceleration of the reference point.
+    """
+    ny = nq + 3
+    ns = ny + 6
+    q = x[0:nq]
+    XT = x[nq:ny]
+    thm = x[ny:ns]
+    qd = x[ns:ns + nq]
+    XTd = x[ns + nq:ns + ny]
+    thmd = x[ns + ny:2 * ns]
+    rO = x[2 * ns:2 * ns + 2]
+    mused = x[2 * ns + 4]
+    mB = sc[S_MB0] - mused
+    msys = sc[S_MTOT0] - mused
+
+    th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc)
+
+    # --- reference point: a_O = g(r_O) + T/m_sys A(θ_B) e_x; every element feels −a_thr
+    cb = math.cos(q[2])
+    sb = math.sin(q[2])
+    thrust = u[U_THRUST]
+    athr = np.array([thrust / msys * cb, thrust / msys * sb])
+    aunif = -athr
+
+    Mg = np.zeros((ny, ny))
+    f = np.zeros(ny)
+
+    # --- base: M = diag(m_B, m_B, J_B); thrust T A(θ_B) e_x, control torque u_B (eq. 4)
+    Mg[0, 0] = mB
+    Mg[1, 1] = mB
+    Mg[2, 2] = sc[S_JB]
+    f[0] = mB * aunif[0] + thrust * cb
+    f[1] = mB * aunif[1] + thrust * sb
+    f[2] = u[U_TAU_B]
+    if sc[S_ORBIT] != 0.0:
+        gx, gy = _tidal(rO, q[0:2])
+        f[0] += sc[S_MU] * mB * gx
+        f[1] += sc[S_MU] * mB * gy
+
+    # --- links: Kane projection (A.6): Jᵀ M J q̈ = Jᵀ (V + F_ext − M J̇ q̇)
+    for i in range(N_LINKS):
+        n = nm[i]
+        nx = 3 + n
+        M, V = link_newton(i, q, qd, th, om, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, sc)
+        Q = _field_link(i, q, th, R, rO, aunif, nm, mo, basis, phi_bar, phi_g, x_g, w_g, sc, M)
+        J = np.zeros((nx, nq))
+        J[0] = JR[i, 0]
+        J[1] = JR[i, 1]
+        J[2] = Jth[i]
+        for a in range(n):
+            J[3 + a, mo[i] + a] = 1.0
+        F = V + Q
+        for r in range(nx):
+            F[r] -= M[r, 0] * cR[i, 0] + M[r, 1] * cR[i, 1]  # − M J̇q̇ (only R has J̇q̇ ≠ 0)
+        MJ = M @ J
+        Mg[0:nq, 0:nq] += J.T @ MJ
+        f[0:nq] += J.T @ F
+
+    # --- joint springs, eq. (5): u_J = −K_m(θ_J − θ_m) − C_m(θ̇_J − θ̇_m), on the joint
+    #     coordinate, i.e. +u_J on the child frame and −u_J on the parent frame
+    uJ = np.zeros(6)
+    thmdd = np.zeros(6)
+    for jn in range(6):
+        uJ[jn] = -sc[S_KM] * (q[3 + jn] - thm[jn]) - sc[S_CM] * (qd[3 + jn] - thmd[jn])
+        f[3 + jn] += uJ[jn]
+        # eq. (2), as the last row of eq. (7): B_m θ̈_m = τ_m − K_m(θ_m − θ_J) − C_m(θ̇_m − θ̇_J)
+        #                                              = τ_m − u_J
+        thmdd[jn] = (u[U_TAU_M + jn] - uJ[jn]) / sc[S_BM]
+
+    # --- target (Newtonian, eq. 3 second row)
+    Mg[nq, nq] = sc[S_MT]
+    Mg[nq + 1, nq + 1] = sc[S_MT]
+    Mg[nq + 2, nq + 2] = sc[S_JT]
+    f[nq] = sc[S_MT] * aunif[0]
+    f[nq + 1] = sc[S_MT] * aunif[1]
+    if sc[S_ORBIT] != 0.0:
+        gx, gy = _tidal(rO, XT[0:2])
+        f[nq] += sc[S_MU] * sc[S_MT] * gx
+        f[nq + 1] += sc[S_MU] * sc[S_MT] * gy
+
+    # --- grasps: wrist bistop torques and constraint rows (8)–(12)
+    nc = 2 * (grasp_on[0] + grasp_on[1])
+    A = np.zeros((nc, ny))
+    phi = np.zeros(nc)
+    phid = np.zeros(nc)
+    Bs = np.zeros(nc)
+    tauw = np.zeros(2)
+    cT = math.cos(XT[2])
+    sT = math.sin(XT[2])
+    row = 0
+    for k in range(2):
+        if grasp_on[k] == 0:
+            continue
+        i3 = 3 * k + 2
+        psi = XT[2] - th[i3]
+        psid = XTd[2] - om[i3]
+        tw = _bistop(psi, psid, sc[S_WLIM], sc[S_WK], sc[S_WC])
+        tauw[k] = tw
+        f[nq + 2] += tw
+        for col in range(nq):
+            f[col] -= tw * Jth[i3, col]
+        # φ_k = r_EE,k − (r_T + A(θ_T) ρ_G,k)
+        gx = cT * rho_G[k, 0] - sT * rho_G[k, 1]  # A(θ_T) ρ_G
+        gy = sT * rho_G[k, 0] + cT * rho_G[k, 1]
+        for d in range(2):
+            for col in range(nq):
+                A[row + d, col] = JE[k, d, col]
+            A[row + d, nq + d] = -1.0
+        A[row, nq + 2] = gy  # −A S ρ_G = −(−gy, gx)
+        A[row + 1, nq + 2] = -gx
+        phi[row] = rE[k, 0] - XT[0] - gx
+        phi[row + 1] = rE[k, 1] - XT[1] - gy
+        phid[row] = rEd[k, 0] - XTd[0] + XTd[2] * gy
+        phid[row + 1] = rEd[k, 1] - XTd[1] - XTd[2] * gx
+        # eq. (10): B = −Ȧ Ẏ = −c_EE − θ̇_T² A(θ_T) ρ_G;  eq. (12): B* = B − 2α φ̇ − β² φ
+        for d in range(2):
+            g_d = gx if d == 0 else gy
+            Bs[row + d] = (-cE[k, d] - XTd[2] * XTd[2] * g_d
+                           - 2.0 * sc[S_ALPHA] * phid[row + d] - sc[S_BETA] ** 2 * phi[row + d])
+        row += 2
+
+    aO = athr.copy()
+    if sc[S_ORBIT] != 0.0:
+        r2 = rO[0] * rO[0] + rO[1] * rO[1]
+        r3 = r2 * math.sqrt(r2)
+        aO[0] += -sc[S_MU] * rO[0] / r3
+        aO[1] += -sc[S_MU] * rO[1] / r3
+    return Mg, f, A, phi, phid, Bs, thmdd, uJ, tauw, aO
+
+
+@njit(cache=True)
+def solve_constrained(Mg, f, A, Bs):
+    """Eq. (11) and the accelerations of eq. (6).
+
+    With W = −Aᵀ (R_cl is the force on the target; the end effector feels −R_cl):
+        R_cl = [A Mg⁻¹ W]⁻¹ [B* − A Mg⁻¹ f],     Ÿ = Mg⁻¹ (f + W R_cl).
+    """
+    nc = A.shape[0]
+    ny = Mg.shape[0]
+    rhs = np.zeros((ny, nc + 1))
+    rhs[:, 0] = f
+    for r in range(nc):
+        rhs[:, 1 + r] = A[r]
+    X = np.linalg.solve(Mg, rhs)  # [Mg⁻¹ f, Mg⁻¹ Aᵀ]
+    if nc == 0:
+        return X[:, 0], np.zeros(0)
+    S = A @ X[:, 1:]  # A Mg⁻¹ Aᵀ  (= −A Mg⁻¹ W)
+    Rcl = np.linalg.solve(-S, Bs - A @ X[:, 0])
+    ydd = X[:, 0] - X[:, 1:] @ Rcl
+    return ydd, Rcl
+
+
+@njit(cache=True)
+def rhs(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
+        mount, grasp_on, rho_G):
+    """ẋ of the full ODE: eq. (7) with (11)–(12), the reference point and mass depletion."""
+    ny = nq + 3
+    ns = ny + 6
+    Mg, f, A, phi, phid, Bs, thmdd, uJ, tauw, aO = assemble(
+        x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
+        mount, grasp_on, rho_G)
+    ydd, Rcl = solve_constrained(Mg, f, A, Bs)
+    dx = np.empty_like(x)
+    dx[0:ns] = x[ns:2 * ns]
+    dx[ns:ns + ny] = ydd
+    dx[ns + ny:2 * ns] = thmdd
+    dx[2 * ns:2 * ns + 2] = x[2 * ns + 2:2 * ns + 4]
+    dx[2 * ns + 2:2 * ns + 4] = aO
+    dx[2 * ns + 4] = u[U_THRUST] / sc[S_ISPG0]
+    return dx
+
+
+# --- Dormand–Prince 5(4) with error control ------------------------------------------
+_C = np.array([0.0, 1.0 / 5, 3.0 / 10, 4.0 / 5, 8.0 / 9, 1.0, 1.0])
+_A = np.array([
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [1.0 / 5, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [3.0 / 40, 9.0 / 40, 0.0, 0.0, 0.0, 0.0],
+    [44.0 / 45, -56.0 / 15, 32.0 / 9, 0.0, 0.0, 0.0],
+    [19372.0 / 6561, -25360.0 / 2187, 64448.0 / 6561, -212.0 / 729, 0.0, 0.0],
+    [9017.0 / 3168, -355.0 / 33, 46732.0 / 5247, 49.0 / 176, -5103.0 / 18656, 0.0],
+    [35.0 / 384, 0.0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84],
+])
+_B5 = np.array([35.0 / 384, 0.0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0.0])
+_E = np.array([71.0 / 57600, 0.0, -71.0 / 16695, 71.0 / 1920, -17253.0 / 339200, 22.0 / 525,
+               -1.0 / 40])
+
+
+@njit(cache=True)
+def integrate(x0, t0, t1, h, rtol, atol, hmax, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff,
+              k_ff, phi_tip, phi_g, x_g, w_g, mount, grasp_on, rho_G):
+    """Integrate from t0 to t1 with inputs u held: embedded Dormand–Prince 5(4), error per
+    component scaled by atol_i + rtol·|x_i|, step ratio limited to [0.2, 5].
+
+    Returns (x(t1), next step size, accepted steps, rejected steps, status); status 0 ok,
+    1 non-finite state, 2 step size underflow.
+    """
+    x = x0.copy()
+    t = t0
+    nx = x.shape[0]
+    K = np.zeros((7, nx))
+    K[0] = rhs(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
+               mount, grasp_on, rho_G)
+    nacc = 0
+    nrej = 0
+    h = min(h, hmax)
+    h_nominal = h
+    while t < t1:
+        last = False
+        h_nominal = h
+        if t + h >= t1 - 1e-12 * max(1.0, abs(t1)):
+            h = t1 - t
+            last = True
+        for st in range(1, 7):
+            xs = x.copy()
+            for j in range(st):
+                if _A[st, j] != 0.0:
+                    xs += h * _A[st, j] * K[j]
+            K[st] = rhs(xs, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g,
+                        x_g, w_g, mount, grasp_on, rho_G)
+        xn = xs  # stage 7 is evaluated at the 5th-order solution (FSAL)
+        err = 0.0
+        for c in range(nx):
+            e = 0.0
+            for st in range(7):
+                e += _E[st] * K[st, c]
+            sc_c = atol[c] + rtol * max(abs(x[c]), abs(xn[c]))
+            err = max(err, abs(h * e) / sc_c)
+        if not np.isfinite(err):
+            if h < 1e-12:
+                return x, h, nacc, nrej, 1
+            h *= 0.2
+            nrej += 1
+            continue
+        if err <= 1.0:
+            t = t1 if last else t + h
+            x = xn
+            K[0] = K[6]
+            nacc += 1
+            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-0.2)))
+            if last:
+                h = min(h_nominal, hmax)  # the clipped last step says nothing about the next
+            else:
+                h = min(h * fac, hmax)
+        else:
+            h *= max(0.2, 0.9 * err ** (-0.2))
+            nrej += 1
+            if h < 1e-13:
+                return x, h, nacc, nrej, 2
+    return x, h, nacc, nrej, 0

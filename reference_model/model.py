@@ -1,0 +1,327 @@
+"""The reference model as an object: parameters → the arrays of `core`, and named access.
+
+`ReferenceModel(params, n_modes)` fixes the number of modes per link (an int for all six
+links, or a sequence of six).  The modal basis of each link (PP or PF) is part of the
+*configuration* (`Configuration`): it changes at capture and release (docs/physics.md §4).
+
+The methods below the simulation API are the quantities that `pinocchio_check` compares
+(rigid Jacobians, mass matrices, closed-loop dynamics); they are thin views on the same
+compiled functions the simulation uses, so the check checks what runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from reference_model import core
+from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
+from rsmcheck.params import Params
+
+N_MAX_MODES = 6
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Index ranges of the ODE state x = [Y*, Ẏ*, r_O, v_O, m_used] (core module doc)."""
+
+    nq: int
+    n_modes: tuple[int, ...]
+    mode_offset: tuple[int, ...]
+
+    @property
+    def ny(self) -> int:
+        return self.nq + 3
+
+    @property
+    def ns(self) -> int:
+        return self.ny + 6
+
+    @property
+    def nx(self) -> int:
+        return 2 * self.ns + 5
+
+    # position blocks
+    @property
+    def q(self) -> slice:
+        return slice(0, self.nq)
+
+    @property
+    def target(self) -> slice:
+        return slice(self.nq, self.ny)
+
+    @property
+    def motors(self) -> slice:
+        return slice(self.ny, self.ns)
+
+    # velocity blocks
+    @property
+    def qd(self) -> slice:
+        return slice(self.ns, self.ns + self.nq)
+
+    @property
+    def target_d(self) -> slice:
+        return slice(self.ns + self.nq, self.ns + self.ny)
+
+    @property
+    def motors_d(self) -> slice:
+        return slice(self.ns + self.ny, 2 * self.ns)
+
+    @property
+    def r_O(self) -> slice:
+        return slice(2 * self.ns, 2 * self.ns + 2)
+
+    @property
+    def v_O(self) -> slice:
+        return slice(2 * self.ns + 2, 2 * self.ns + 4)
+
+    @property
+    def m_used(self) -> int:
+        return 2 * self.ns + 4
+
+    def modes(self, link: int) -> slice:
+        """Amplitudes of link 0..5 inside q."""
+        return slice(self.mode_offset[link], self.mode_offset[link] + self.n_modes[link])
+
+
+@dataclass
+class Configuration:
+    """The switching part of the model: which arm holds the target, where, in which basis.
+
+    grasp_on[k]  1 where arm k+1 holds the target
+    rho_G[k]     held point, target frame relative to the target COM [m]
+    basis[i]     PP or PF for link i (terminal links: PF when their arm is free)
+    """
+
+    grasp_on: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.int64))
+    rho_G: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
+    basis: np.ndarray = field(default_factory=lambda: np.array([PP, PP, PF, PP, PP, PF], dtype=np.int64))
+
+    def copy(self) -> "Configuration":
+        return Configuration(self.grasp_on.copy(), self.rho_G.copy(), self.basis.copy())
+
+
+def terminal_basis(grasp_on: Sequence[int]) -> np.ndarray:
+    """Basis of every link for a grasp state: inner links PP; terminal PP if holding, else PF."""
+    return np.array([PP, PP, PP if grasp_on[0] else PF, PP, PP, PP if grasp_on[1] else PF],
+                    dtype=np.int64)
+
+
+class ReferenceModel:
+    """The Kane–Newton model of the paper built from `params`.
+
+    n_modes: modes per link, one int for all or six ints (0 = rigid link).
+    orbit:   tidal gravity about the co-moving reference point on (True) or off.
+    """
+
+    def __init__(self, params: Params, n_modes: int | Sequence[int] = 2, orbit: bool = False):
+        if isinstance(n_modes, (int, np.integer)):
+            n_modes = (int(n_modes),) * core.N_LINKS
+        n_modes = tuple(int(n) for n in n_modes)
+        if len(n_modes) != core.N_LINKS or any(n < 0 or n > N_MAX_MODES for n in n_modes):
+            raise ValueError(f"n_modes must be 6 integers in 0..{N_MAX_MODES}, got {n_modes}")
+        self.params = params
+        self.orbit = orbit
+        offsets = tuple(9 + sum(n_modes[:i]) for i in range(core.N_LINKS))
+        self.layout = Layout(nq=9 + sum(n_modes), n_modes=n_modes, mode_offset=offsets)
+        lk = params.link
+        nmax = max(max(n_modes), 1)
+        self.bases: dict[int, ModalBasis] = {
+            kind: modal_basis(kind, nmax, lk.length, lk.rho_a, lk.ei) for kind in (PP, PF)
+        }
+        self._arrays = self._pack(nmax)
+
+    # ---- packing -------------------------------------------------------------------
+    def _pack(self, nmax: int) -> tuple:
+        p = self.params
+        lk = p.link
+        sc = np.zeros(core.N_SCALARS)
+        sc[core.S_MB0] = p.base.mass
+        sc[core.S_JB] = p.base.inertia_z
+        sc[core.S_MT] = p.target.mass
+        sc[core.S_JT] = p.target.inertia_z
+        sc[core.S_ML] = lk.mass
+        sc[core.S_L] = lk.length
+        sc[core.S_RHO] = lk.rho_a
+        sc[core.S_I0] = lk.mass * lk.length**2 / 3.0
+        sc[core.S_JEX] = lk.inertia_extra
+        sc[core.S_ETA] = lk.kelvin_voigt_eta
+        sc[core.S_BM] = p.motor.inertia
+        sc[core.S_KM] = p.motor.stiffness
+        sc[core.S_CM] = p.motor.damping
+        sc[core.S_ALPHA] = p.grasp.baumgarte_alpha
+        sc[core.S_BETA] = p.grasp.baumgarte_beta
+        sc[core.S_WLIM] = p.wrist.limit
+        sc[core.S_WK] = p.wrist.stiffness
+        sc[core.S_WC] = p.wrist.damping
+        sc[core.S_MU] = p.orbit.mu
+        sc[core.S_ISPG0] = p.actuators.isp * p.actuators.g0
+        sc[core.S_ORBIT] = 1.0 if self.orbit else 0.0
+        sc[core.S_MTOT0] = p.base.mass + p.target.mass + 6 * lk.mass
+
+        def stack(attr: str) -> np.ndarray:
+            return np.ascontiguousarray(np.stack([getattr(self.bases[k], attr) for k in (PP, PF)]))
+
+        phi_tip = stack("phi_tip")
+        phi_tip[PP] = 0.0  # sin(jπ) = 0 exactly: the PP chord frame passes through both pins
+        mount = np.array([p.geometry.mount_B(1), p.geometry.mount_B(2)], dtype=float)
+        return (
+            sc,
+            np.array(self.layout.n_modes, dtype=np.int64),
+            np.array(self.layout.mode_offset, dtype=np.int64),
+            stack("phi_bar"),
+            stack("phi_x"),
+            stack("m_ff"),
+            stack("k_ff"),
+            phi_tip,
+            stack("phi_gauss"),
+            self.bases[PP].x_gauss.copy(),
+            self.bases[PP].w_gauss.copy(),
+            mount,
+        )
+
+    @property
+    def scalars(self) -> np.ndarray:
+        return self._arrays[0]
+
+    def core_args(self, cfg: Configuration) -> tuple:
+        """Arguments of `core.rhs`/`core.assemble` after (x, u): model + configuration."""
+        sc, nm, mo, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g, mount = self._arrays
+        return (self.layout.nq, sc, nm, mo, cfg.basis, phi_bar, phi_x, m_ff, k_ff, phi_tip,
+                phi_g, x_g, w_g, mount, cfg.grasp_on, cfg.rho_G)
+
+    def kinematics(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> tuple:
+        """`core.kinematics` for this model (frames, Jacobians, end effectors)."""
+        sc, nm, mo, _, _, _, _, phi_tip, _, _, _, mount = self._arrays
+        return core.kinematics(np.asarray(q, float), np.asarray(qd, float), nm, mo, cfg.basis,
+                               phi_tip, mount, sc)
+
+    # ---- state helpers -------------------------------------------------------------
+    def zero_state(self) -> np.ndarray:
+        x = np.zeros(self.layout.nx)
+        return x
+
+    def assemble(self, x: np.ndarray, u: np.ndarray, cfg: Configuration) -> tuple:
+        return core.assemble(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
+
+    def rhs(self, x: np.ndarray, u: np.ndarray, cfg: Configuration) -> np.ndarray:
+        return core.rhs(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
+
+    # ---- quantities checked by Pinocchio (no orbit, no inputs) ----------------------
+    def _state(self, q, qd, X_T=None, XT_d=None) -> np.ndarray:
+        lay = self.layout
+        x = self.zero_state()
+        x[lay.q] = q
+        x[lay.qd] = qd
+        if X_T is not None:
+            x[lay.target] = X_T
+        if XT_d is not None:
+            x[lay.target_d] = XT_d
+        # motors at the joint angles: no spring torque, so u_J enters only where asked for
+        x[lay.motors] = x[3:9]
+        x[lay.motors_d] = x[lay.ns + 3:lay.ns + 9]
+        return x
+
+    def _cfg_for(self, grasp: Sequence[bool], rho_exact: bool = True) -> Configuration:
+        g = np.array([1 if grasp[0] else 0, 1 if grasp[1] else 0], dtype=np.int64)
+        rho = np.array([self.params.geometry.grasp_T(1), self.params.geometry.grasp_T(2)], float)
+        return Configuration(grasp_on=g, rho_G=rho, basis=terminal_basis(g))
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Jᵀ M J of the RSM (no target, no rotors), eq. (A.6) [kg, kg·m, kg·m²]."""
+        nq = self.layout.nq
+        x = self._state(q, np.zeros(nq))
+        Mg = self.assemble(x, np.zeros(core.N_INPUTS), self._cfg_for((False, False)))[0]
+        return Mg[:nq, :nq].copy()
+
+    def bias_forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Jᵀ M J̇ q̇ − Jᵀ V: the velocity-dependent generalized force on the left-hand side
+        of (A.6), without elastic and damping forces (amplitudes must be zero for that)."""
+        nq = self.layout.nq
+        lay = self.layout
+        x = self._state(q, qd)
+        f = self.assemble(x, np.zeros(core.N_INPUTS), self._cfg_for((False, False)))[1][:nq]
+        # remove the elastic/Kelvin–Voigt part so the result is purely inertial
+        sc, nm, mo, _, _, _, k_ff, *_ = self._arrays
+        cfg = self._cfg_for((False, False))
+        for i in range(core.N_LINKS):
+            sl = lay.modes(i)
+            n = lay.n_modes[i]
+            kf = k_ff[cfg.basis[i], :n, :n]
+            f[sl] += kf @ (q[sl] + sc[core.S_ETA] * qd[sl])
+        return -f
+
+    def point_kinematics(self, q, qd, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, Jacobian (2×nq) and J̇q̇ of end effector 'ee1' or 'ee2', inertial [m]."""
+        k = {"ee1": 0, "ee2": 1}[name]
+        out = self.kinematics(q, qd, self._cfg_for((False, False)))
+        rE, JE, cE = out[7], out[9], out[10]
+        return rE[k].copy(), JE[k].copy(), cE[k].copy()
+
+    def grasp_point(self, X_T: np.ndarray, arm: int) -> np.ndarray:
+        """Inertial position of the designated grasp point of `arm` (1, 2) on the target."""
+        rho = np.asarray(self.params.geometry.grasp_T(arm))
+        c, s = np.cos(X_T[2]), np.sin(X_T[2])
+        return np.array([X_T[0] + c * rho[0] - s * rho[1], X_T[1] + s * rho[0] + c * rho[1]])
+
+    def com(self, q: np.ndarray, X_T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """System COM (RSM + target) and its Jacobian w.r.t. [q, X_T] (2×(nq+3))."""
+        nq = self.layout.nq
+        cfg = self._cfg_for((False, False))
+        th, _, R, _, JR, Jth, *_ = self.kinematics(q, np.zeros(nq), cfg)
+        p = self.params
+        m_tot = p.base.mass + p.target.mass + 6 * p.link.mass
+        pos = p.base.mass * q[0:2] + p.target.mass * np.asarray(X_T[0:2])
+        jac = np.zeros((2, nq + 3))
+        jac[0, 0] = jac[1, 1] = p.base.mass
+        jac[0, nq] = jac[1, nq + 1] = p.target.mass
+        sc, nm, mo, phi_bar, *_ = self._arrays
+        for i in range(core.N_LINKS):
+            n = self.layout.n_modes[i]
+            sl = self.layout.modes(i)
+            s1 = np.array([0.5 * p.link.mass * p.link.length, phi_bar[cfg.basis[i], :n] @ q[sl]])
+            c, s = np.cos(th[i]), np.sin(th[i])
+            A = np.array([[c, -s], [s, c]])
+            pos += p.link.mass * R[i] + A @ s1
+            jac[:, :nq] += p.link.mass * JR[i] + np.outer(A @ np.array([-s1[1], s1[0]]), Jth[i])
+            jac[:, sl] += np.outer(A[:, 1], phi_bar[cfg.basis[i], :n])
+        return pos / m_tot, jac / m_tot
+
+    def momentum(self, q, qd, X_T, XT_d) -> np.ndarray:
+        """Linear momentum (x, y) and angular momentum about the origin, RSM + target."""
+        from reference_model.observe import momentum_of_state
+
+        return momentum_of_state(self, self._state(q, qd, X_T, XT_d), self._cfg_for((False, False)))
+
+    def constrained_accelerations(self, q, qd, X_T, XT_d, grasp=(True, False), u_J=None,
+                                  tau_B: float = 0.0):
+        """q̈, Ẍ_T and R_cl (force on the target, inertial; zero where a grasp is off) from
+        eqs. (6) and (11) with Baumgarte off, for joint torques u_J on the joint coordinates
+        and a base torque τ_B.  Grasp points are the designated ones (Params)."""
+        lay = self.layout
+        nq = lay.nq
+        x = self._state(q, qd, X_T, XT_d)
+        if u_J is not None:
+            # u_J = −K_m(θ_J − θ_m) with θ̇_m = θ̇_J: set the motor angles to produce it
+            x[lay.motors] = x[3:9] + np.asarray(u_J, float) / self.params.motor.stiffness
+        u = np.zeros(core.N_INPUTS)
+        u[core.U_TAU_B] = tau_B
+        cfg = self._cfg_for(grasp)
+        sc = self.scalars.copy()
+        sc[core.S_ALPHA] = 0.0
+        sc[core.S_BETA] = 0.0
+        sc[core.S_WK] = 0.0
+        sc[core.S_WC] = 0.0
+        args = list(self.core_args(cfg))
+        args[1] = sc
+        Mg, f, A, _, _, Bs, *_ = core.assemble(x, u, *args)
+        ydd, Rc = core.solve_constrained(Mg, f, A, Bs)
+        R_cl = np.zeros(4)
+        row = 0
+        for k in range(2):
+            if cfg.grasp_on[k]:
+                R_cl[2 * k:2 * k + 2] = Rc[row:row + 2]
+                row += 2
+        return ydd[:nq].copy(), ydd[nq:nq + 3].copy(), R_cl

@@ -1,0 +1,195 @@
+"""Observables of SPEC §4 from a reference-model state (docs/physics.md §6).
+
+All positions are relative to the co-moving reference point O, inertial axes, unless the
+suffix says otherwise (`_B`: base frame about the base COM).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from reference_model import core
+from reference_model.model import Configuration, ReferenceModel
+
+
+def _rot(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s], [s, c]])
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def link_s1(model: ReferenceModel, cfg: Configuration, q: np.ndarray, i: int) -> np.ndarray:
+    """S1 = ∫ρ u dξ of link i in its frame: (m L/2, φ̄·A) [kg·m]."""
+    lay = model.layout
+    n = lay.n_modes[i]
+    phi_bar = model._arrays[3]
+    p = model.params.link
+    return np.array([0.5 * p.mass * p.length, phi_bar[cfg.basis[i], :n] @ q[lay.modes(i)]])
+
+
+def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> np.ndarray:
+    """(p_x, p_y, L_z): linear momentum and angular momentum about O of base, links, target.
+
+    Per link, exactly from the modal integrals (r = R + A u, ṙ = Ṙ + θ̇ A S u + A e_y Φ Ȧ):
+        p = m Ṙ + θ̇ A S S1 + A e_y (φ̄·Ȧ)
+        L = R × p + (A S1) × Ṙ + θ̇ (I_0 + Aᵀ M_ff A + J_extra) + (∫ρ ξ Φ)·Ȧ
+    """
+    lay = model.layout
+    prm = model.params
+    q, qd = x[lay.q], x[lay.qd]
+    XT, XTd = x[lay.target], x[lay.target_d]
+    mB = prm.base.mass - x[lay.m_used]
+    th, om, R, Rd, *_ = model.kinematics(q, qd, cfg)
+    sc, nm, mo, phi_bar, phi_x, m_ff, *_ = model._arrays
+    p = mB * qd[0:2] + prm.target.mass * XTd[0:2]
+    L = _cross(q[0:2], mB * qd[0:2]) + prm.base.inertia_z * qd[2]
+    L += _cross(XT[0:2], prm.target.mass * XTd[0:2]) + prm.target.inertia_z * XTd[2]
+    for i in range(core.N_LINKS):
+        n = lay.n_modes[i]
+        b = cfg.basis[i]
+        a, ad = q[lay.modes(i)], qd[lay.modes(i)]
+        A = _rot(th[i])
+        s1 = link_s1(model, cfg, q, i)
+        As1 = A @ s1
+        ey = A[:, 1]
+        pl = prm.link.mass * Rd[i] + om[i] * np.array([-As1[1], As1[0]]) + ey * (phi_bar[b, :n] @ ad)
+        p += pl
+        inertia = sc[core.S_I0] + a @ m_ff[b, :n, :n] @ a + sc[core.S_JEX]
+        L += _cross(R[i], pl) + _cross(As1, Rd[i]) + om[i] * inertia + phi_x[b, :n] @ ad
+    return np.array([p[0], p[1], L])
+
+
+def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Configuration,
+                    Mg: np.ndarray) -> np.ndarray:
+    """(kinetic, elastic, gravitational) [J].
+
+    kinetic       ½ Ẏᵀ M_g Ẏ + ½ Σ B_m θ̇_m²        (M_g of eq. 6 is the exact kinetic metric)
+    elastic       ½ Σ Aᵀ K_ff A + ½ Σ K_m (θ_m − θ_J)² + ½ k_w (|ψ| − ψ_lim)² beyond the stops
+    gravitational tidal potential about O (orbit on), Gauss points along the links
+    """
+    lay = model.layout
+    prm = model.params
+    Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
+    kin = 0.5 * Yd @ Mg @ Yd + 0.5 * prm.motor.inertia * np.sum(x[lay.motors_d] ** 2)
+    q = x[lay.q]
+    k_ff = model._arrays[6]
+    el = 0.0
+    for i in range(core.N_LINKS):
+        n = lay.n_modes[i]
+        a = q[lay.modes(i)]
+        el += 0.5 * a @ k_ff[cfg.basis[i], :n, :n] @ a
+    el += 0.5 * prm.motor.stiffness * np.sum((x[lay.motors] - q[3:9]) ** 2)
+    th = model.kinematics(q, x[lay.qd], cfg)[0]
+    for k in range(2):
+        if cfg.grasp_on[k]:
+            psi = x[lay.target][2] - th[3 * k + 2]
+            over = abs(psi) - prm.wrist.limit
+            if over > 0:
+                el += 0.5 * prm.wrist.stiffness * over**2
+    grav = 0.0
+    if model.orbit:
+        grav = tidal_energy(model, x, cfg)
+    return np.array([kin, el, grav])
+
+
+def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> float:
+    lay = model.layout
+    prm = model.params
+    q = x[lay.q]
+    rO = x[lay.r_O]
+    mu = prm.orbit.mu
+    mB = prm.base.mass - x[lay.m_used]
+    e = mB * core._tidal_potential(rO, q[0:2]) + prm.target.mass * core._tidal_potential(rO, x[lay.target][0:2])
+    th, _, R, *_ = model.kinematics(q, x[lay.qd], cfg)
+    bas = model.bases
+    for i in range(core.N_LINKS):
+        n = lay.n_modes[i]
+        a = q[lay.modes(i)]
+        basis = bas[int(cfg.basis[i])]
+        A = _rot(th[i])
+        for xg, wg, ph in zip(basis.x_gauss, basis.w_gauss, basis.phi_gauss):
+            rel = R[i] + A @ np.array([xg, ph[:n] @ a])
+            e += prm.link.rho_a * wg * core._tidal_potential(rO, rel)
+    return mu * e
+
+
+def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, float]:
+    """System COM relative to O (inertial axes) and the system mass."""
+    lay = model.layout
+    prm = model.params
+    q = x[lay.q]
+    mB = prm.base.mass - x[lay.m_used]
+    th, _, R, *_ = model.kinematics(q, x[lay.qd], cfg)
+    s = mB * q[0:2] + prm.target.mass * x[lay.target][0:2]
+    m = mB + prm.target.mass
+    for i in range(core.N_LINKS):
+        s = s + prm.link.mass * R[i] + _rot(th[i]) @ link_s1(model, cfg, q, i)
+        m += prm.link.mass
+    return s / m, m
+
+
+def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: Configuration,
+            capture_arm: int, capture_point_T: np.ndarray) -> dict[str, np.ndarray | float]:
+    """Every observable of SPEC §4 at one instant.
+
+    capture_arm / capture_point_T: the arm whose gap `capture_gap_B` reports and its
+    designated capture point (target frame, about the target COM).
+    """
+    lay = model.layout
+    prm = model.params
+    q, qd = x[lay.q], x[lay.qd]
+    XT, XTd = x[lay.target], x[lay.target_d]
+    Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
+    _, Rc = core.solve_constrained(Mg, f, A, Bs)
+    th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = model.kinematics(q, qd, cfg)
+    AB_T = _rot(q[2]).T
+    rB = q[0:2]
+    com, msys = system_com(model, x, cfg)
+    reaction = np.zeros(4)
+    residual = np.zeros(4)
+    row = 0
+    for k in range(2):
+        if cfg.grasp_on[k]:
+            reaction[2 * k:2 * k + 2] = Rc[row:row + 2]
+            residual[2 * k:2 * k + 2] = phi[row:row + 2]
+            row += 2
+    cap = XT[0:2] + _rot(XT[2]) @ capture_point_T
+    deflection = np.zeros(6)
+    phi_mid = np.stack([model.bases[0].phi_mid, model.bases[1].phi_mid])
+    for i in range(core.N_LINKS):
+        n = lay.n_modes[i]
+        deflection[i] = phi_mid[cfg.basis[i], :n] @ q[lay.modes(i)]
+    r_abs = x[lay.r_O] + rB
+    radial = r_abs / np.linalg.norm(r_abs)
+    along = np.array([-radial[1], radial[0]])
+    d_T = XT[0:2] - rB
+    alt_vec = x[lay.r_O] + com
+    return {
+        "time": t,
+        "base_pose_I": q[0:3].copy(),
+        "target_pose_B": np.array([*(AB_T @ d_T), XT[2] - q[2]]),
+        "ee1_pos_B": AB_T @ (rE[0] - rB),
+        "ee2_pos_B": AB_T @ (rE[1] - rB),
+        "ee2_speed": float(np.linalg.norm(rEd[1])),
+        "capture_gap_B": AB_T @ (rE[capture_arm - 1] - cap),
+        "com_pos_B": AB_T @ (com - rB),
+        "joint_angles": q[3:9].copy(),
+        "motor_angles": x[lay.motors].copy(),
+        "motor_torques": u[core.U_TAU_M:core.U_TAU_M + 6].copy(),
+        "base_torque": float(u[core.U_TAU_B]),
+        "link_deflection": deflection,
+        "target_attitude": float(XT[2]),
+        "reaction_forces_I": reaction,
+        "constraint_residual": residual,
+        "grasp_state": cfg.grasp_on.astype(float),
+        "energy": energy_of_state(model, x, u, cfg, Mg),
+        "momentum_I": momentum_of_state(model, x, cfg),
+        "altitude": float(np.linalg.norm(alt_vec) - prm.orbit.earth_radius) if model.orbit else 0.0,
+        "target_rel_lvlh": np.array([d_T @ radial, d_T @ along]),
+        "system_mass": float(msys),
+    }

@@ -1,0 +1,1 @@
+"""Self-contained HTML report comparing the engines phase by phase (SPEC §1)."""

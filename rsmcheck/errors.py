@@ -1,0 +1,34 @@
+"""Error types shared by every part of rsmcheck.
+
+`InputError` is raised for anything a user wrote wrongly (a case file, a parameter
+override, a command-line argument).  The command line turns it into one line on stderr
+and exit code 2.  `SimulationDiverged` is raised by an engine whose state stopped being
+finite or bounded; it carries the time, the phase and the quantity that blew up.
+"""
+
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Bad user input: `where` names the file (or source) and `field` the key."""
+
+    def __init__(self, where: str, field: str, reason: str):
+        self.where = where
+        self.field = field
+        self.reason = reason
+        super().__init__(f"{where}: {field}: {reason}")
+
+
+class SimulationDiverged(RuntimeError):
+    """A simulation left the range where its results mean anything."""
+
+    def __init__(self, engine: str, time: float, phase: str, quantity: str, value: float):
+        self.engine = engine
+        self.time = time
+        self.phase = phase
+        self.quantity = quantity
+        self.value = value
+        super().__init__(
+            f"{engine}: diverged at t = {time:.6g} s in phase '{phase}': "
+            f"{quantity} = {value:.6g}"
+        )

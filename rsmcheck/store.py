@@ -1,0 +1,341 @@
+"""HDF5 run files (SPEC §4, last paragraph).
+
+A run file holds one group per engine (`/reference`, `/exudyn`).  Each group has one
+dataset per observable of SPEC §4 (first axis = time sample, `time` included), the
+events (`events/time`, `events/kind`, `events/detail`), the phase boundaries
+(`phases/name`, `phases/t_start`, `phases/t_end`) and, as attributes, the engine name,
+its package versions (`version.<package>`) and its solver settings (`solver.<key>`).
+The root attributes carry the case name and case-file hash, the parameter hash, the git
+commit of rsmcheck, the versions of Python/numpy/h5py and the UTC creation time.
+
+Writing is atomic: the file is written as `<path>.tmp` in the same directory and renamed
+over `<path>` only once complete; on any failure the temporary file is removed and an
+existing `<path>` is left as it was.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import platform
+import subprocess
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Mapping
+
+import h5py
+import numpy as np
+
+from rsmcheck.errors import InputError
+from rsmcheck.observables import NAMES, check_observables
+
+FORMAT = "rsmcheck-run"
+FORMAT_VERSION = 1
+COMPRESS_ABOVE = 1000
+"""Datasets with more samples than this are stored gzip-compressed."""
+
+_SOLVER = "solver."
+_VERSION = "version."
+_RESERVED_ROOT = (
+    "format", "format_version", "case_name", "case_hash", "param_hash",
+    "git_commit", "git_dirty", "created_utc", "engines",
+)
+_STR = h5py.string_dtype("utf-8")
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened at one instant (capture, release, bistop contact, ...)."""
+
+    time: float
+    kind: str
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class Phase:
+    """A named interval of a case (mission phase, burn, coast, ...)."""
+
+    name: str
+    t_start: float
+    t_end: float
+
+
+@dataclass
+class EngineRun:
+    """Everything one engine produced for one case."""
+
+    engine: str
+    observables: dict[str, np.ndarray]
+    events: list[Event] = field(default_factory=list)
+    phases: list[Phase] = field(default_factory=list)
+    solver: dict[str, float | int | str] = field(default_factory=dict)
+    versions: dict[str, str] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------
+# helpers shared by the engines
+# ---------------------------------------------------------------------------------------
+def package_versions(*names: str) -> dict[str, str]:
+    """Installed versions of the distributions `names` ("not installed" if absent)."""
+    out: dict[str, str] = {}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def git_commit(repo: str | os.PathLike[str] | None = None) -> tuple[str, str]:
+    """(commit, dirty) of the git work tree holding rsmcheck's sources.
+
+    `commit` is `git rev-parse HEAD` or "unknown" (no git, no repository, no commit
+    yet); `dirty` is "yes"/"no" for tracked files modified relative to HEAD, or
+    "unknown".
+    """
+    cwd = Path(repo) if repo is not None else Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "--verify", "--quiet", "HEAD"],
+            cwd=cwd, capture_output=True, text=True, timeout=10, check=False,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return "unknown", "unknown"
+    commit = head.stdout.strip()
+    if head.returncode != 0 or not commit:
+        return "unknown", "unknown"
+    try:
+        status = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=cwd, capture_output=True, text=True, timeout=30, check=False,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return commit, "unknown"
+    if status.returncode != 0:
+        return commit, "unknown"
+    return commit, "yes" if status.stdout.strip() else "no"
+
+
+# ---------------------------------------------------------------------------------------
+# writing
+# ---------------------------------------------------------------------------------------
+def write_run(
+    path: str | os.PathLike[str],
+    runs: Mapping[str, EngineRun],
+    case_name: str,
+    case_hash: str,
+    param_hash: str,
+    extra_attrs: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write `runs` (group name -> run, the name being the run's engine) to `path`.
+
+    Everything is validated before anything is written: observables with
+    `check_observables`, events and phases (finite times, t_end >= t_start), scalar
+    attributes.  Raises ValueError on bad data; the file system is then untouched.
+    Returns the final path.
+    """
+    path = Path(path)
+    where = str(path)
+    if not runs:
+        raise ValueError(f"{where}: no engine runs to write")
+    for key, value in (("case_name", case_name), ("case_hash", case_hash),
+                       ("param_hash", param_hash)):
+        if not isinstance(value, str) or not value:
+            raise ValueError(f"{where}: {key} must be a non-empty string, got {value!r}")
+    extra = dict(extra_attrs or {})
+    for key, value in extra.items():
+        if key in _RESERVED_ROOT or key.startswith(_VERSION):
+            raise ValueError(f"{where}: extra attribute '{key}' is reserved")
+        _check_scalar(value, f"{where}: extra attribute '{key}'")
+    for name, run in runs.items():
+        _validate_run(name, run, f"{where}:/{name}")
+
+    commit, dirty = git_commit()
+    root_attrs: dict[str, Any] = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "case_name": case_name,
+        "case_hash": case_hash,
+        "param_hash": param_hash,
+        "git_commit": commit,
+        "git_dirty": dirty,
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "engines": ",".join(runs),
+        _VERSION + "python": platform.python_version(),
+        **{_VERSION + k: v for k, v in package_versions("rsmcheck", "numpy", "h5py").items()},
+        **extra,
+    }
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(str(path) + ".tmp")
+    try:
+        with h5py.File(tmp, "w") as f:
+            for key, value in root_attrs.items():
+                f.attrs[key] = value
+            for name, run in runs.items():
+                _write_group(f, name, run)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def _check_scalar(value: Any, what: str) -> None:
+    if isinstance(value, (bool, np.bool_)):
+        return
+    if isinstance(value, str):
+        return
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return
+    raise ValueError(f"{what}: must be a number, bool or string, got {type(value).__name__}")
+
+
+def _validate_run(name: str, run: EngineRun, where: str) -> None:
+    if not isinstance(run, EngineRun):
+        raise ValueError(f"{where}: expected an EngineRun, got {type(run).__name__}")
+    if not name or "/" in name or name in (".", ".."):
+        raise ValueError(f"{where}: '{name}' is not a valid group name")
+    if run.engine != name:
+        raise ValueError(f"{where}: group name '{name}' differs from the run's engine "
+                         f"'{run.engine}'")
+    check_observables(run.observables, where)
+    for i, ev in enumerate(run.events):
+        if not isinstance(ev, Event):
+            raise ValueError(f"{where}: events[{i}] is not an Event")
+        if not np.isfinite(ev.time):
+            raise ValueError(f"{where}: events[{i}] ({ev.kind}) has time {ev.time}")
+        if not isinstance(ev.kind, str) or not ev.kind or not isinstance(ev.detail, str):
+            raise ValueError(f"{where}: events[{i}] needs a non-empty kind and a string detail")
+    for i, ph in enumerate(run.phases):
+        if not isinstance(ph, Phase):
+            raise ValueError(f"{where}: phases[{i}] is not a Phase")
+        if not isinstance(ph.name, str) or not ph.name:
+            raise ValueError(f"{where}: phases[{i}] needs a non-empty name")
+        if not (np.isfinite(ph.t_start) and np.isfinite(ph.t_end)) or ph.t_end < ph.t_start:
+            raise ValueError(f"{where}: phase '{ph.name}' has bad bounds "
+                             f"[{ph.t_start}, {ph.t_end}]")
+    for key, value in run.solver.items():
+        _check_scalar(value, f"{where}: solver setting '{key}'")
+    for key, value in run.versions.items():
+        if not isinstance(value, str):
+            raise ValueError(f"{where}: version of '{key}' must be a string, got {value!r}")
+
+
+def _write_group(f: h5py.File, name: str, run: EngineRun) -> None:
+    g = f.create_group(name)
+    g.attrs["engine"] = run.engine
+    for key, value in run.versions.items():
+        g.attrs[_VERSION + key] = value
+    for key, value in run.solver.items():
+        g.attrs[_SOLVER + key] = value
+    n = None
+    for obs in NAMES:
+        data = np.asarray(run.observables[obs], dtype=np.float64)
+        n = data.shape[0]
+        kwargs: dict[str, Any] = {}
+        if n > COMPRESS_ABOVE:
+            kwargs = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+        g.create_dataset(obs, data=data, **kwargs)
+    g.attrs["n_samples"] = n
+    ev = g.create_group("events")
+    ev.create_dataset("time", data=np.array([e.time for e in run.events], dtype=np.float64))
+    ev.create_dataset("kind", data=[e.kind for e in run.events], dtype=_STR)
+    ev.create_dataset("detail", data=[e.detail for e in run.events], dtype=_STR)
+    ph = g.create_group("phases")
+    ph.create_dataset("name", data=[p.name for p in run.phases], dtype=_STR)
+    ph.create_dataset("t_start", data=np.array([p.t_start for p in run.phases], dtype=np.float64))
+    ph.create_dataset("t_end", data=np.array([p.t_end for p in run.phases], dtype=np.float64))
+
+
+# ---------------------------------------------------------------------------------------
+# reading
+# ---------------------------------------------------------------------------------------
+def read_run(path: str | os.PathLike[str]) -> tuple[dict[str, EngineRun], dict[str, Any]]:
+    """Read a run file: (group name -> EngineRun, root attributes as Python values).
+
+    Raises FileNotFoundError if `path` does not exist and `InputError` (a ValueError)
+    if it is not a well-formed rsmcheck run file.
+    """
+    path = Path(path)
+    where = str(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{where}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(where, "file", f"not an HDF5 file ({exc})") from None
+    with f:
+        attrs = {key: _py(value) for key, value in f.attrs.items()}
+        if attrs.get("format") != FORMAT:
+            raise InputError(where, "format", f"not an rsmcheck run file "
+                                              f"(format = {attrs.get('format')!r})")
+        if attrs.get("format_version") != FORMAT_VERSION:
+            raise InputError(where, "format_version",
+                             f"{attrs.get('format_version')!r} is not supported "
+                             f"(this rsmcheck reads {FORMAT_VERSION})")
+        runs: dict[str, EngineRun] = {}
+        for name, g in f.items():
+            if not isinstance(g, h5py.Group):
+                raise InputError(where, name, "expected an engine group")
+            runs[name] = _read_group(g, f"{where}:/{name}")
+    return runs, attrs
+
+
+def _read_group(g: h5py.Group, where: str) -> EngineRun:
+    observables: dict[str, np.ndarray] = {}
+    for key, item in g.items():
+        if key in ("events", "phases"):
+            continue
+        if not isinstance(item, h5py.Dataset):
+            raise InputError(where, key, "expected a dataset")
+        observables[key] = item[()]
+    try:
+        check_observables(observables, where)
+    except ValueError as exc:
+        raise InputError(where, "observables", str(exc).removeprefix(where + ": ")) from None
+    try:
+        ev, ph = g["events"], g["phases"]
+        ev_time = ev["time"][()]
+        ev_kind = ev["kind"].asstr()[()]
+        ev_detail = ev["detail"].asstr()[()]
+        ph_name = ph["name"].asstr()[()]
+        ph_start = ph["t_start"][()]
+        ph_end = ph["t_end"][()]
+    except (KeyError, TypeError) as exc:
+        raise InputError(where, "events/phases", f"missing or malformed ({exc})") from None
+    if not (len(ev_time) == len(ev_kind) == len(ev_detail)):
+        raise InputError(where, "events", "time, kind and detail differ in length")
+    if not (len(ph_name) == len(ph_start) == len(ph_end)):
+        raise InputError(where, "phases", "name, t_start and t_end differ in length")
+    solver: dict[str, Any] = {}
+    versions: dict[str, str] = {}
+    for key, value in g.attrs.items():
+        if key.startswith(_SOLVER):
+            solver[key[len(_SOLVER):]] = _py(value)
+        elif key.startswith(_VERSION):
+            versions[key[len(_VERSION):]] = str(_py(value))
+    return EngineRun(
+        engine=str(_py(g.attrs.get("engine", g.name.lstrip("/")))),
+        observables=observables,
+        events=[Event(float(t), str(k), str(d)) for t, k, d in zip(ev_time, ev_kind, ev_detail)],
+        phases=[Phase(str(n), float(a), float(b)) for n, a, b in zip(ph_name, ph_start, ph_end)],
+        solver=solver,
+        versions=versions,
+    )
+
+
+def _py(value: Any) -> Any:
+    """An HDF5 attribute value as a plain Python value."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8")
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
