@@ -84,6 +84,22 @@ class ModalBasis:
         return self.omega / (2.0 * math.pi)
 
 
+def mode_shapes(kind: int, n: int, length: float, x: np.ndarray) -> np.ndarray:
+    """The n scaled shapes φ_j(x) of basis `kind` at points x, shape (x.size, n)."""
+    fine = np.linspace(0.0, length, 4001)
+    out = np.empty((np.size(x), n))
+    for j in range(n):
+        b = beta_l(kind, j + 1) / length
+        out[:, j] = _shape(kind, b, length, np.asarray(x, float), 0) / np.max(np.abs(_shape(kind, b, length, fine, 0)))
+    return out
+
+
+def quadrature(length: float, n: int = _N_GAUSS_INTEGRALS) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre abscissae and weights on [0, length]."""
+    xg, wg = np.polynomial.legendre.leggauss(n)
+    return 0.5 * length * (xg + 1.0), 0.5 * length * wg
+
+
 def modal_basis(kind: int, n: int, length: float, rho_a: float, ei: float) -> ModalBasis:
     """Build the `kind` (PP or PF) basis with `n` ≥ 0 modes for a uniform beam."""
     if kind not in (PP, PF):

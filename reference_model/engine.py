@@ -1,0 +1,143 @@
+"""The reference model as an `rsmcheck.engine.Engine`: state, stepping, switching, output."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cases.loader import Case
+from reference_model import core, switching
+from reference_model.model import Configuration, ReferenceModel, terminal_basis
+from reference_model.observe import observe, system_com
+from rsmcheck.engine import Inputs, Sensors
+from rsmcheck.errors import SimulationDiverged
+from rsmcheck.initial import InitialConfiguration, build_initial
+from rsmcheck.params import Params
+from rsmcheck.store import package_versions
+
+#: error-control scale per kind of state component: atol_i = rtol · scale_i
+ATOL_SCALE = {
+    "rigid": 1.0,  # m, rad
+    "modal": 1e-3,  # m (amplitudes are micrometres to millimetres)
+    "rigid_rate": 1.0,  # m/s, rad/s
+    "modal_rate": 1e-1,  # m/s (ω · amplitude)
+    "orbit_r": 1e4,  # m (|r_O| ≈ 7e6 m)
+    "orbit_v": 1e1,  # m/s
+    "mass": 1.0,  # kg
+}
+H_MAX = 0.05  # s
+
+
+class ReferenceEngine:
+    """Kane–Newton reference model stepping through a case."""
+
+    name = "reference"
+
+    def __init__(self, case: Case, params: Params | None = None, n_modes=None, rtol: float | None = None):
+        self.params = params or case.params
+        self.case = case
+        self.model = ReferenceModel(self.params, n_modes if n_modes is not None else case.n_modes,
+                                    orbit=case.orbit)
+        self.rtol = rtol if rtol is not None else case.solver.rtol
+        init = build_initial(case, self.params)
+        self.x, self.cfg = initial_state(self.model, init)
+        self.t = 0.0
+        self.h = 1e-4
+        self.steps = 0
+        self.rejected = 0
+        self.atol = self._atol()
+        self.capture_arm = case.capture.arm
+        self.capture_point = np.asarray(self.params.geometry.grasp_T(case.capture.arm), float)
+
+    def _atol(self) -> np.ndarray:
+        lay = self.model.layout
+        s = np.empty(lay.nx)
+        s[:] = ATOL_SCALE["rigid"]
+        s[9:lay.nq] = ATOL_SCALE["modal"]
+        s[lay.ns:2 * lay.ns] = ATOL_SCALE["rigid_rate"]
+        s[lay.ns + 9:lay.ns + lay.nq] = ATOL_SCALE["modal_rate"]
+        s[lay.r_O] = ATOL_SCALE["orbit_r"]
+        s[lay.v_O] = ATOL_SCALE["orbit_v"]
+        s[lay.m_used] = ATOL_SCALE["mass"]
+        return self.rtol * s
+
+    # ---- Engine protocol -------------------------------------------------------------
+    def time(self) -> float:
+        return self.t
+
+    def u_vector(self, inputs: Inputs) -> np.ndarray:
+        u = np.zeros(core.N_INPUTS)
+        u[core.U_TAU_M:core.U_TAU_M + 6] = inputs.tau_m
+        u[core.U_TAU_B] = inputs.tau_B
+        u[core.U_THRUST] = inputs.thrust
+        return u
+
+    def advance(self, t_next: float, inputs: Inputs) -> None:
+        x, h, nacc, nrej, status = core.integrate(
+            self.x, self.t, t_next, self.h, self.rtol, self.atol, H_MAX, self.u_vector(inputs),
+            *self.model.core_args(self.cfg))
+        self.steps += nacc
+        self.rejected += nrej
+        if status != 0 or not np.all(np.isfinite(x)):
+            bad = int(np.argmax(~np.isfinite(x))) if not np.all(np.isfinite(x)) else int(np.argmax(np.abs(x)))
+            raise SimulationDiverged(self.name, self.t, "?", f"state[{bad}] "
+                                     + ("non-finite" if status == 1 else "step size underflow"), float(x[bad]))
+        self.x, self.h, self.t = x, h, t_next
+
+    def sensors(self) -> Sensors:
+        lay = self.model.layout
+        x = self.x
+        q, qd = x[lay.q], x[lay.qd]
+        kin = self.model.kinematics(q, qd, self.cfg)
+        rE, rEd = kin[7], kin[8]
+        com, m = system_com(self.model, x, self.cfg)
+        c, s = math.cos(q[2]), math.sin(q[2])
+        d = com - q[0:2]
+        return Sensors(
+            time=self.t, base_pose_I=q[0:3].copy(), base_rate_I=qd[0:3].copy(),
+            joint_angles=q[3:9].copy(), joint_rates=qd[3:9].copy(),
+            motor_angles=x[lay.motors].copy(), motor_rates=x[lay.motors_d].copy(),
+            ee_pos_I=rE.copy(), ee_vel_I=rEd.copy(),
+            target_pose_I=x[lay.target].copy(), target_rate_I=x[lay.target_d].copy(),
+            com_pos_B=np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]),
+            grasp_state=self.cfg.grasp_on.copy(), system_mass=m,
+            orbit_r_I=x[lay.r_O].copy(), orbit_v_I=x[lay.v_O].copy())
+
+    def observe(self, inputs: Inputs) -> dict:
+        return observe(self.model, self.t, self.x, self.u_vector(inputs), self.cfg,
+                       self.capture_arm, self.capture_point)
+
+    def capture(self, arm: int) -> dict[str, float]:
+        return switching.capture(self.model, self.x, self.cfg, arm)
+
+    def release(self, arm: int) -> dict[str, float]:
+        return switching.release(self.model, self.x, self.cfg, arm)
+
+    def solver_settings(self) -> dict:
+        return {"integrator": "Dormand-Prince 5(4), embedded error control", "rtol": self.rtol,
+                "h_max": H_MAX, "control_period": self.case.solver.control_period,
+                "n_modes": ",".join(str(n) for n in self.model.layout.n_modes),
+                "steps": self.steps, "rejected_steps": self.rejected}
+
+    def versions(self) -> dict[str, str]:
+        return package_versions("rsmcheck", "numpy", "numba", "scipy")
+
+
+def initial_state(model: ReferenceModel, init: InitialConfiguration) -> tuple[np.ndarray, Configuration]:
+    """ODE state and configuration from shared initial conditions: links undeformed and at
+    rest relative to their frames, motors at the joint angles (springs relaxed)."""
+    lay = model.layout
+    x = model.zero_state()
+    x[0:3] = init.base_pose
+    x[3:9] = init.joint_angles
+    x[lay.target] = init.target_pose
+    x[lay.motors] = init.joint_angles
+    x[lay.ns:lay.ns + 3] = init.base_rate
+    x[lay.ns + 3:lay.ns + 9] = init.joint_rates
+    x[lay.target_d] = init.target_rate
+    x[lay.motors_d] = init.joint_rates
+    x[lay.r_O] = init.orbit_r
+    x[lay.v_O] = init.orbit_v
+    cfg = Configuration(grasp_on=init.grasp.copy(), rho_G=init.rho_G.copy(), basis=terminal_basis(init.grasp))
+    return x, cfg

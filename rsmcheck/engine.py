@@ -1,0 +1,80 @@
+"""What an engine offers the shared driver, and what the driver hands to controllers.
+
+Both engines (reference, Exudyn) implement `Engine`; `rsmcheck.runner.run` drives either
+through the same sampled-data loop (docs/physics.md §6), so the controller, the capture
+logic and the output sampling are the same code for both.  Nothing here knows how an
+engine computes anything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Sensors:
+    """What a controller or supervisor may measure at a sample (SI, rad; `_I` inertial axes
+    relative to the co-moving point O, `_B` base frame about the base COM).
+
+    ee_pos_I / ee_vel_I: end effector of arm k in row k, relative to O, inertial axes.
+    """
+
+    time: float
+    base_pose_I: np.ndarray  # x, y, θ_B
+    base_rate_I: np.ndarray  # ẋ, ẏ, θ̇_B
+    joint_angles: np.ndarray  # 6
+    joint_rates: np.ndarray  # 6
+    motor_angles: np.ndarray  # 6
+    motor_rates: np.ndarray  # 6
+    ee_pos_I: np.ndarray  # (2, 2)
+    ee_vel_I: np.ndarray  # (2, 2)
+    target_pose_I: np.ndarray  # x_T, y_T, θ_T
+    target_rate_I: np.ndarray  # 3
+    com_pos_B: np.ndarray  # system COM, 2
+    grasp_state: np.ndarray  # 2, 1 where arm k holds the target
+    system_mass: float
+    orbit_r_I: np.ndarray  # position of O from Earth's centre (zeros when no orbit)
+    orbit_v_I: np.ndarray
+
+
+@dataclass
+class Inputs:
+    """Held over one control period: motor torques τ_m (6), base torque τ_B, thrust T."""
+
+    tau_m: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    tau_B: float = 0.0
+    thrust: float = 0.0
+
+
+class Engine(Protocol):
+    """One simulator of the paper's system, stepping in control periods."""
+
+    name: str
+
+    def time(self) -> float: ...
+
+    def sensors(self) -> Sensors: ...
+
+    def observe(self, inputs: Inputs) -> dict[str, np.ndarray | float]:
+        """Every SPEC §4 observable at the current instant."""
+        ...
+
+    def advance(self, t_next: float, inputs: Inputs) -> None:
+        """Integrate to t_next with `inputs` held; raise SimulationDiverged on blow-up."""
+        ...
+
+    def capture(self, arm: int) -> dict[str, float]:
+        """Switch grasp `arm` (1, 2) on at the current instant (docs/physics.md §4.2);
+        returns figures for the event log (e.g. the basis-switch residual)."""
+        ...
+
+    def release(self, arm: int) -> dict[str, float]:
+        """Switch grasp `arm` off (docs/physics.md §4.2)."""
+        ...
+
+    def solver_settings(self) -> dict[str, float | int | str]: ...
+
+    def versions(self) -> dict[str, str]: ...
