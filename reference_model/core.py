@@ -459,10 +459,12 @@ def solve_constrained(Mg, f, A, Bs):
         rhs[:, 1 + r] = A[r]
     X = np.linalg.solve(Mg, rhs)  # [Mg⁻¹ f, Mg⁻¹ Aᵀ]
     if nc == 0:
-        return X[:, 0], np.zeros(0)
-    S = A @ X[:, 1:]  # A Mg⁻¹ Aᵀ  (= −A Mg⁻¹ W)
-    Rcl = np.linalg.solve(-S, Bs - A @ X[:, 0])
-    ydd = X[:, 0] - X[:, 1:] @ Rcl
+        return np.ascontiguousarray(X[:, 0]), np.zeros(0)
+    X0 = np.ascontiguousarray(X[:, 0])
+    XA = np.ascontiguousarray(X[:, 1:])
+    S = A @ XA  # A Mg⁻¹ Aᵀ  (= −A Mg⁻¹ W)
+    Rcl = np.linalg.solve(-S, Bs - A @ X0)
+    ydd = X0 - XA @ Rcl
     return ydd, Rcl
 
 

@@ -164,8 +164,9 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
     for i in range(core.N_LINKS):
         n = lay.n_modes[i]
         deflection[i] = phi_mid[cfg.basis[i], :n] @ q[lay.modes(i)]
+    # LVLH of the base: x radial outward, y along-track; without an orbit, inertial axes
     r_abs = x[lay.r_O] + rB
-    radial = r_abs / np.linalg.norm(r_abs)
+    radial = r_abs / np.linalg.norm(r_abs) if model.orbit else np.array([1.0, 0.0])
     along = np.array([-radial[1], radial[0]])
     d_T = XT[0:2] - rB
     alt_vec = x[lay.r_O] + com
