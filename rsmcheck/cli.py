@@ -73,6 +73,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_report(args: argparse.Namespace) -> int:
+    from report.build import build_report
+
+    path = build_report(Path(args.out), _engine_names(args.engine), args.short, args.cases or None)
+    print(f"wrote {path}")
+    return 0
+
+
 def _cmd_pinocchio(args: argparse.Namespace) -> int:
     from pinocchio_check.compare import main
 
@@ -83,6 +91,7 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "cases": _cmd_cases,
     "run": _cmd_run,
     "pinocchio": _cmd_pinocchio,
+    "report": _cmd_report,
 }
 
 
@@ -95,13 +104,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
+    p = sub.add_parser("report", help="run the cases and write a self-contained HTML report")
+    p.add_argument("--out", default="out/report.html", help="HTML file (run files go to its folder/runs)")
+    p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
+    p.add_argument("--short", action="store_true", help="the compressed variant of each case")
+    p.add_argument("--cases", nargs="+", metavar="CASE", help="only these cases (default: all)")
     p = sub.add_parser("pinocchio", help="rigid checks of the reference against Pinocchio", add_help=False)
     p.add_argument("rest", nargs=argparse.REMAINDER)
     return parser
 
 
+#: subcommands with their own argument parsing (argparse cannot pass "--json" through)
+DELEGATED = {"pinocchio"}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in DELEGATED:
+        args = argparse.Namespace(command=argv[0], rest=argv[1:])
+    else:
+        args = build_parser().parse_args(argv)
     try:
         return COMMANDS[args.command](args)
     except InputError as exc:
