@@ -87,7 +87,14 @@ def _cmd_pinocchio(args: argparse.Namespace) -> int:
     return main(args.rest)
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from rsmcheck.bench import main
+
+    return main(args.rest)
+
+
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "bench": _cmd_bench,
     "cases": _cmd_cases,
     "run": _cmd_run,
     "pinocchio": _cmd_pinocchio,
@@ -109,13 +116,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
     p.add_argument("--short", action="store_true", help="the compressed variant of each case")
     p.add_argument("--cases", nargs="+", metavar="CASE", help="only these cases (default: all)")
+    sub.add_parser("bench", help="speed of each engine on the same work [--json] [--full]", add_help=False)
     p = sub.add_parser("pinocchio", help="rigid checks of the reference against Pinocchio", add_help=False)
     p.add_argument("rest", nargs=argparse.REMAINDER)
     return parser
 
 
 #: subcommands with their own argument parsing (argparse cannot pass "--json" through)
-DELEGATED = {"pinocchio"}
+DELEGATED = {"pinocchio", "bench"}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
