@@ -75,10 +75,11 @@ def _tidal(rO, rel):
 
 @njit(cache=True)
 def _tidal_potential(rO, rel):
-    """Tidal potential per unit mass / μ whose gradient in ρ is `_tidal` (fixed r_O).
+    """Tidal potential energy per unit mass / μ: −∇_ρ U = `_tidal` (fixed r_O).
 
     U/μ = −1/|r_O+ρ| + 1/|r_O| − r_O·ρ/|r_O|³ = (h(q) + |ρ|²/(2|r_O|²))/|r_O| with
-    h(q) = 1 − (1+q)^(−1/2) − q/2, evaluated by its series for small q.
+    h(q) = 1 − (1+q)^(−1/2) − q/2, evaluated by its series for small q.  To second order
+    U/μ = −ρᵀ(3 r̂r̂ᵀ − I)ρ/(2|r_O|³): negative along the radial (the tidal force stretches).
     """
     r2 = rO[0] * rO[0] + rO[1] * rO[1]
     rho2 = rel[0] * rel[0] + rel[1] * rel[1]
@@ -87,7 +88,7 @@ def _tidal_potential(rO, rel):
         h = qv * qv * (-3.0 / 8.0 + qv * (5.0 / 16.0 + qv * (-35.0 / 128.0 + qv * 63.0 / 256.0)))
     else:
         h = 1.0 - 1.0 / math.sqrt(1.0 + qv) - 0.5 * qv
-    return -(h + 0.5 * rho2 / r2) / math.sqrt(r2)
+    return (h + 0.5 * rho2 / r2) / math.sqrt(r2)
 
 
 @njit(cache=True)

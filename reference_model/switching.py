@@ -36,7 +36,9 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
         release (PF):  tan δ = ∫ρ ξ w dξ / I_0           (mass-orthogonal rigid mode)
     Transverse field in the new frame, w'(ξ) = n'·(r(ξ) − R) = −ξ sin δ + w cos δ, rate
     ẇ'(ξ) = θ̇ w sin δ + (θ̇ ξ + ẇ) cos δ − θ̇' ξ, with θ̇' fixed by the same condition on the
-    rates; both projected on Φ_new by mass-weighted least squares.  θ_J of the link takes
+    rates; both projected on Φ_new by mass-weighted least squares (for PF constrained to
+    keep the free tip w'(L), ẇ'(L): the distal pin stays continuous; for PP the chord frame
+    already puts it at w'(L) = 0).  θ_J of the link takes
     δ (and θ̇' − θ̇); the rotor angle and the proximal pin do not move.
     """
     lay = model.layout
@@ -73,8 +75,24 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     res_p = res_v = 0.0
     if n:
         mass = rho * (phi_new.T * wq) @ phi_new
-        a_new = np.linalg.solve(mass, rho * (phi_new.T * wq) @ w_new)
-        ad_new = np.linalg.solve(mass, rho * (phi_new.T * wq) @ wd_new)
+        b_p = rho * (phi_new.T * wq) @ w_new
+        b_v = rho * (phi_new.T * wq) @ wd_new
+        if new == PF:
+            # The distal pin must stay where it is (docs/physics.md §4.4: every pin is
+            # continuous): least squares constrained to w'(L) = n'·(r(L) − R) and
+            # ẇ'(L) likewise (the PP tip of the old field has w(L) = ẇ(L) = 0).
+            tip = mode_shapes(PF, n, L, np.array([L]))[0]
+            w_tip = -L * math.sin(delta) + w_L * math.cos(delta)
+            wd_tip = math.sin(delta) * om * w_L + math.cos(delta) * (om * L + wd_L) - om_new * L
+            kkt = np.zeros((n + 1, n + 1))
+            kkt[:n, :n] = mass
+            kkt[:n, n] = tip
+            kkt[n, :n] = tip
+            a_new = np.linalg.solve(kkt, np.append(b_p, w_tip))[:n]
+            ad_new = np.linalg.solve(kkt, np.append(b_v, wd_tip))[:n]
+        else:
+            a_new = np.linalg.solve(mass, b_p)
+            ad_new = np.linalg.solve(mass, b_v)
         res_p = float(np.max(np.abs(w_new - phi_new @ a_new)))
         res_v = float(np.max(np.abs(wd_new - phi_new @ ad_new)))
         x[lay.q][sl] = a_new

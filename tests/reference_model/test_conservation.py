@@ -1,0 +1,183 @@
+"""Conservation laws of the reference model (docs/physics.md §8) and the Baumgarte residual.
+
+* Energy: closed chain (both grasps, closed_squeeze's geometry), no damping anywhere
+  (link ζ = 0, C_m = 0), no control, no orbit, wrist far from its stops, flexible links
+  (2 modes each) vibrating, rotors off their joint angles, 60 s: the sum of the three
+  `energy` components drifts by ≤ 1e-6 of the total energy.
+* Momentum: free floating (no orbit, no base torque), internal motor torques only
+  (controller "constant"): linear and angular momentum (`momentum_I`) change by ≤ 1e-9 of
+  their magnitude at t = 0, |p(0)| and |L(0)| (the initial rates give both a clear value).
+* Baumgarte (eq. 12): closed_squeeze with its torques for 60 s keeps the constraint
+  residual φ_T of eq. (8) ≤ 1e-8 m.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cases.loader import load_case
+from reference_model.engine import ReferenceEngine
+from rsmcheck.engine import Inputs
+from rsmcheck.runner import run
+
+ENERGY_REL_TOL = 1e-6
+MOMENTUM_REL_TOL = 1e-9
+RESIDUAL_TOL_M = 1e-8
+
+CONSERVATIVE_CLOSED = """
+description = "closed chain, conservative: no damping, no control, no orbit"
+duration = 60.0
+[initial]
+base_pose = [0.0, 0.0, 0.0]
+base_rate = [0.0, 0.0, 0.005]
+joint_angles_deg = [60.0, -120.0, 60.0, -60.0, 120.0, -60.0]
+joint_rates = [0.001, -0.0015, 0.0008, 0.0, 0.0, 0.0]
+grasp = [1, 1]
+wrist_angle_deg = 0.0
+[controller]
+kind = "none"
+[solver]
+control_period = 0.01
+output_period = 0.5
+rtol = 1e-9
+[reference]
+n_modes = 2
+[params.link]
+damping_ratio = 0.0
+[params.motor]
+damping = 0.0
+"""
+
+
+@pytest.mark.slow
+def test_energy_conserved_closed_chain_flexible_60s(make_case):
+    case = make_case("conservative_closed", CONSERVATIVE_CLOSED)
+    assert case.params.link.damping_ratio == 0.0 and case.params.motor.damping == 0.0
+    engine = ReferenceEngine(case)
+    lay = engine.model.layout
+    assert list(engine.cfg.grasp_on) == [1, 1]
+    # arm 2's rates were solved by rsmcheck.initial so that the chain is closed and moving
+    assert np.abs(engine.x[lay.ns + 6:lay.ns + 9]).max() > 1e-4
+    # links vibrating (≈2 µm, ≈0.4 mm/s) and rotors off their joints: every spring works
+    rng = np.random.default_rng(0)
+    amp = 2e-6
+    for i in range(6):
+        sl = lay.modes(i)
+        engine.x[lay.q][sl] = amp * rng.uniform(-1, 1, size=2) * [1.0, 0.25]
+        engine.x[lay.qd][sl] = amp * 200.0 * rng.uniform(-1, 1, size=2)
+    engine.x[lay.motors] += amp * rng.uniform(-1, 1, size=6)
+
+    u = Inputs()
+    dt = case.solver.output_period
+    energy, momentum, psi = [], [], []
+    limit = case.params.wrist.limit
+    for k in range(int(round(case.duration / dt)) + 1):
+        if k:
+            engine.advance(k * dt, u)
+        o = engine.observe(u)
+        energy.append(o["energy"])
+        momentum.append(o["momentum_I"])
+        ja, thT = o["joint_angles"], o["target_pose_B"][2]
+        psi.append([thT - ja[0:3].sum(), thT - ja[3:6].sum()])
+    energy = np.array(energy)
+    total = energy.sum(axis=1)
+    drift = np.abs(total - total[0]).max()
+    m_sys = o["system_mass"]
+    p0 = momentum[0]
+    internal = total[0] - (p0[0] ** 2 + p0[1] ** 2) / (2 * m_sys)  # Koenig: minus COM motion
+    print(f"\nenergy: E0 = {total[0]:.6g} J (internal {internal:.6g} J), max drift {drift:.3e} J = "
+          f"{drift / total[0]:.2e} of E0, {drift / internal:.2e} of the internal energy; "
+          f"elastic range {np.ptp(energy[:, 1]):.2e} J; {engine.steps} steps")
+    assert np.abs(psi).max() < 0.5 * limit  # the bistop never acts
+    assert np.all(energy[:, 2] == 0.0)  # no orbit
+    # the elastic energy takes part: its swings are ≫ the tolerated drift
+    assert np.ptp(energy[:, 1]) > 10 * ENERGY_REL_TOL * total[0]
+    assert drift <= ENERGY_REL_TOL * abs(total[0])
+    assert drift <= ENERGY_REL_TOL * internal  # also relative to the energy of the motion alone
+    assert np.abs(np.array(momentum) - p0).max() <= 1e-9 * np.abs(p0).max()
+    # φ stays on the manifold throughout (Baumgarte, no damping)
+    assert np.abs(o["constraint_residual"]).max() <= RESIDUAL_TOL_M
+
+
+FREE_FLOATING = """
+description = "free floating, internal motor torques only"
+duration = {duration}
+[initial]
+base_pose = [0.1, -0.2, 0.3]
+base_rate = [0.02, -0.01, 0.015]
+joint_angles_deg = [60.0, -120.0, 60.0, -60.0, 120.0, -60.0]
+joint_rates = [0.02, -0.03, 0.01, -0.02, 0.03, 0.02]
+grasp = {grasp}
+{target}
+[controller]
+kind = "constant"
+motor_torques = [1.5, -1.0, 0.5, -1.2, 0.8, -0.6]
+base_torque = 0.0
+[solver]
+control_period = 1e-3
+output_period = 0.05
+rtol = 1e-9
+"""
+
+
+@pytest.mark.parametrize(
+    "grasp, target",
+    [
+        ("[1, 0]", ""),  # open chain: arm 1 holds the target, arm 2 free (PF terminal)
+        ("[0, 0]", "target_pose = [6.0, 1.0, 0.2]\ntarget_rate = [-0.01, 0.02, -0.01]"),  # no grasp
+    ],
+    ids=["open_chain", "no_grasp"],
+)
+def test_momentum_conserved_free_floating_motor_torques(make_case, grasp, target):
+    case = make_case("free_floating", FREE_FLOATING.format(duration=4.0, grasp=grasp, target=target))
+    assert case.controller.kind == "constant" and case.controller.base_torque == 0.0
+    engine = ReferenceEngine(case)
+    out = run(engine, case, case.duration)
+    obs = out.observables
+    mom = obs["momentum_I"]
+    torques = obs["motor_torques"]
+    assert np.all(np.abs(torques[:-1]) > 0.4)  # the motors push all the time
+    assert np.all(obs["base_torque"] == 0.0)
+    # the torques do something: joints move well beyond the initial-rate drift
+    joints = obs["joint_angles"]
+    assert np.abs(joints[-1] - joints[0]).max() > 0.05
+    assert np.abs(obs["link_deflection"]).max() > 1e-7  # flexible links are loaded
+    p0 = np.linalg.norm(mom[0, :2])
+    L0 = abs(mom[0, 2])
+    assert p0 > 1.0 and L0 > 1.0
+    dp = np.linalg.norm(mom[:, :2] - mom[0, :2], axis=1).max()
+    dL = np.abs(mom[:, 2] - mom[0, 2]).max()
+    print(f"\nmomentum ({grasp}): |p0| = {p0:.4g} kg·m/s, max |Δp|/|p0| = {dp / p0:.2e}; "
+          f"L0 = {L0:.4g} kg·m²/s, max |ΔL|/|L0| = {dL / L0:.2e}")
+    assert dp <= MOMENTUM_REL_TOL * p0
+    assert dL <= MOMENTUM_REL_TOL * L0
+
+
+@pytest.mark.slow
+def test_baumgarte_keeps_closed_squeeze_on_the_constraint_60s():
+    """closed_squeeze as shipped (its constant torques, its damping, its solver settings),
+    integrated for 60 s with the torques held; φ_T sampled every 20 ms."""
+    case = load_case("closed_squeeze")
+    assert list(case.initial.grasp) == [1, 1]
+    assert case.controller.kind == "constant"  # constant torques: holding them is exact
+    tau = np.array(case.controller.motor_torques, float)
+    assert np.all(np.abs(tau) <= case.params.motor.torque_max) and np.abs(tau).max() > 0
+    engine = ReferenceEngine(case)
+    u = Inputs(tau_m=tau, tau_B=case.controller.base_torque)
+    dt = 0.02
+    residual, reactions = [], []
+    for k in range(int(round(60.0 / dt)) + 1):
+        if k:
+            engine.advance(k * dt, u)
+        o = engine.observe(u)
+        residual.append(o["constraint_residual"])
+        reactions.append(o["reaction_forces_I"])
+    assert engine.time() == pytest.approx(60.0)
+    res = np.abs(residual).max()
+    # the chain is loaded: reaction forces of eq. (11) are not small
+    r_max = np.abs(reactions).max()
+    print(f"\nclosed_squeeze 60 s: max |φ_T| = {res:.2e} m, max |R_cl| = {r_max:.3g} N, "
+          f"{engine.steps} steps")
+    assert r_max > 1.0
+    assert res <= RESIDUAL_TOL_M
