@@ -1,0 +1,880 @@
+"""The paper's robot from Exudyn's general items, as an `rsmcheck.engine.Engine`.
+
+Model (docs/exudyn.md has the reasons and the numbers):
+
+* base, target: `ObjectRigidBody2D` at their COMs, positions relative to the co-moving
+  reference point O (docs/physics.md §5);
+* links: `ObjectANCFCable2D` chains (`exudyn_model.links`), or with `rigid=True`
+  `ObjectRigidBody2D` (COM at mid-length, J_z about the COM);
+* link frames (docs/physics.md §2.1, §3.3): a massless rigid *frame body* per flexible link
+  carrying J_extra, pinned at the proximal pin (`ObjectJointRevolute2D`) and aligned by an
+  `ObjectJointPrismatic2D` (no rotation constraint) so that its x-axis passes through
+    PP: the distal pin (chord frame), or
+    PF: the point P = R + (L/I_0) ∫ρ ξ (r − R) dξ, a massless node tied to the beam
+        coordinates by a linear `ObjectConnectorCoordinateVector`; its x-axis is then the
+        mass-orthogonal frame, θ = atan2(∫ρ ξ (r − R) dξ), exactly;
+  a couple on a frame body is thereby transmitted to the beam as exactly the generalised
+  force τ ∂θ/∂q of physics.md §3.3 (the distributed load τρξ/I_0 for PF);
+* joints: `ObjectJointRevolute2D` between beam-end nodes (pinned ends: no moment);
+* rotors (eq. 2): one linear `ObjectGenericODE2` per joint over [parent frame θ, child frame
+  θ, rotor θ_m (`NodeGenericODE2`)], mass B_m on θ_m, stiffness K_m v vᵀ, damping C_m v vᵀ,
+  v = (+1, −1, +1): the spring acts on θ_m − θ_J with θ_J between link frames; τ_m by
+  `LoadCoordinate` on θ_m;
+* grasps: `ObjectJointRevolute2D` end effector ↔ target point, switched by `activeConnector`;
+  wrist bistop: `ObjectConnectorCoordinateSpringDamperExt` with limit stops between the
+  terminal frame θ and θ_T;
+* inputs held over the control period (zero-order hold, set once per period): τ_B
+  (`LoadTorqueVector`), τ_m, thrust (`LoadForceVector`, body fixed), and, with an orbit or
+  thrust, the field of docs/physics.md §5 as one generalised force vector on the mass
+  coordinates (an `ObjectGenericODE2` without matrices), the propellant mass on the base,
+  and the motion of O (RK4 in the engine).
+
+Integration: Exudyn's generalized-α (index 3) with a fixed step, `substeps` per control
+period.  One `SolveSteps` runs across control periods in a worker thread, paused at every
+control sample by a post-step function (`_Worker`), so the algorithmic state and the
+modified-Newton Jacobian carry over; `stepping="period"` calls `SolveSteps` once per period
+instead.  No Python user function runs inside a Newton iteration.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import weakref
+from dataclasses import dataclass, field as dc_field
+
+import numpy as np
+
+sys.exudynFast = True  # noqa: E402
+import exudyn as exu  # noqa: E402
+from exudyn.itemInterface import (  # noqa: E402
+    CoordinateConstraint, LoadCoordinate, LoadForceVector, LoadTorqueVector,
+    MarkerBodyPosition, MarkerBodyRigid, MarkerNodeCoordinate, MarkerNodePosition,
+    MarkerNodeRigid, MarkerObjectODE2Coordinates, NodeGenericData, NodeGenericODE2,
+    NodePointGround, NodeRigidBody2D, ObjectConnectorCoordinateSpringDamperExt,
+    ObjectConnectorCoordinateVector, ObjectGenericODE2, ObjectGround, ObjectJointPrismatic2D,
+    ObjectJointRevolute2D, ObjectRigidBody2D)
+
+from cases.loader import Case  # noqa: E402
+from exudyn_model import field as fld  # noqa: E402
+from exudyn_model import links  # noqa: E402
+from rsmcheck.engine import Inputs, Sensors  # noqa: E402
+from rsmcheck.errors import SimulationDiverged  # noqa: E402
+from rsmcheck.initial import build_initial  # noqa: E402
+from rsmcheck.params import Params  # noqa: E402
+from rsmcheck.store import package_versions  # noqa: E402
+
+PP, PF = "PP", "PF"
+#: Default solver settings (convergence study in docs/exudyn.md).
+SUBSTEPS_DEFAULT = 2  # generalized-α steps per 1 ms control period
+SPECTRAL_RADIUS_DEFAULT = 0.6  # ENGINE-NOTES: ≤ 0.6 keeps switched multipliers clean
+NEWTON_RTOL_DEFAULT = 1e-8
+#: Absolute Newton tolerance [N, m]: the round-off floor of the ANCF axial forces is
+#: EA·ε_mach·|q|/le ≈ 1e-5 N (EA = 4.5e8 N), so a purely relative test stalls whenever the
+#: initial residual of a step is below ~1 N (smooth drift).  1e-4 N on a 36 kg link is an
+#: acceleration error of 3e-6 m/s² for one step.  Rigid links have no such floor.
+NEWTON_ATOL_FLEXIBLE = 1e-4
+NEWTON_ATOL_RIGID = 1e-10
+N_GAUSS_FIELD = 4  # Gauss points per element for the tidal field, energy and momentum
+
+
+def _rot(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s], [s, c]])
+
+
+def _cross(a, b) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def _perp(a) -> np.ndarray:
+    return np.array([-a[1], a[0]])
+
+
+@dataclass
+class LinkItems:
+    """The Exudyn items of one link (index 0..5: arm 1 links 1–3, then arm 2)."""
+
+    index: int
+    rigid: bool
+    frame_node: int  # coordinate 2 of this node is the link frame angle θ_i
+    frame_body: int
+    prox_marker: int  # position marker at the proximal pin
+    dist_marker: int  # position marker at the distal pin (the end effector for link 3)
+    nodes: list[int] = dc_field(default_factory=list)  # ANCF nodes (flexible)
+    elements: list[int] = dc_field(default_factory=list)
+    coords: np.ndarray | None = None  # global ODE2 indices of the beam (or rigid node) coordinates
+    pp_joint: int | None = None  # chord prismatic (distal pin on the frame axis)
+    pf_joint: int | None = None  # rigid-mode prismatic (P on the frame axis), terminal links
+    p_node: int | None = None
+    basis: str = PP
+
+
+class ExudynEngine:
+    """The system of docs/physics.md built from Exudyn items, stepping through a case.
+
+    Options:
+      rigid           rigid links (the rigid-equivalence check against the reference with 0 modes)
+      n_elements      ANCF elements per link
+      substeps        generalized-α steps per control period (h = control_period/substeps)
+      spectral_radius ρ∞ of generalized-α
+      newton_rtol     relative Newton tolerance
+      field           build the field/thrust machinery (default: when the case has an orbit)
+    """
+
+    name = "exudyn"
+
+    def __init__(self, case: Case, params: Params | None = None, rigid: bool = False,
+                 n_elements: int = links.N_ELEMENTS_DEFAULT, substeps: int = SUBSTEPS_DEFAULT,
+                 spectral_radius: float = SPECTRAL_RADIUS_DEFAULT, newton_rtol: float = NEWTON_RTOL_DEFAULT,
+                 newton_atol: float | None = None,
+                 field: bool | None = None, restart_on_input_change: bool = True,
+                 stepping: str = "continuous"):
+        self.case = case
+        self.params = params or case.params
+        self.rigid = bool(rigid)
+        self.n_elements = int(n_elements)
+        self.substeps = int(substeps)
+        self.spectral_radius = float(spectral_radius)
+        self.newton_rtol = float(newton_rtol)
+        self.newton_atol = float(newton_atol if newton_atol is not None else
+                                 (NEWTON_ATOL_RIGID if self.rigid else NEWTON_ATOL_FLEXIBLE))
+        self.orbit = bool(case.orbit)
+        self.field = self.orbit if field is None else bool(field)
+        self.restart_on_input_change = bool(restart_on_input_change)
+        if stepping not in ("continuous", "period"):
+            raise ValueError(f"stepping must be 'continuous' or 'period', got {stepping!r}")
+        self.stepping = stepping
+        self.dt = case.solver.control_period
+        p = self.params
+        self.mesh = links.LinkMesh(self.n_elements, p.link.length, p.link.rho_a)
+        self.I0 = p.link.mass * p.link.length**2 / 3.0
+        init = build_initial(case, p)
+        self.grasp_on = np.array(init.grasp, dtype=np.int64)
+        self.rho_G = np.array(init.rho_G, float)
+        self.r_O = np.array(init.orbit_r, float)
+        self.v_O = np.array(init.orbit_v, float)
+        self.m_used = 0.0
+        self.t = 0.0
+        self.capture_arm = case.capture.arm
+        self.capture_point = np.asarray(p.geometry.grasp_T(case.capture.arm), float)
+        self._held: tuple | None = None
+        self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0}
+        self._build(init)
+        self._index()
+        self._init_solver()
+        self._worker = _Worker(self) if stepping == "continuous" else None
+        if self._worker is not None:
+            weakref.finalize(self, _Worker.stop, self._worker)
+
+    # =====================================================================================
+    # model
+    # =====================================================================================
+    def _build(self, init) -> None:
+        p = self.params
+        SC = exu.SystemContainer()
+        mbs = SC.AddSystem()
+        self.SC, self.mbs = SC, mbs
+        self.ground = mbs.AddObject(ObjectGround())
+        self.ground_coords = mbs.AddMarker(MarkerObjectODE2Coordinates(objectNumber=self.ground))
+        gnode = mbs.AddNode(NodePointGround())
+        self.ground_coord = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=gnode, coordinate=0))
+
+        def rigid(pose, rate, mass, inertia):
+            n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=list(map(float, pose)),
+                                            initialVelocities=list(map(float, rate))))
+            return n, mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=mass, inertia=inertia))
+
+        self.base_node, self.base = rigid(init.base_pose, init.base_rate, p.base.mass, p.base.inertia_z)
+        self.target_node, self.target = rigid(init.target_pose, init.target_rate, p.target.mass, p.target.inertia_z)
+
+        # ---- links, arm by arm from the base outward (rigid kinematics, undeformed) ----
+        self.links: list[LinkItems] = []
+        L = p.link.length
+        rB = np.asarray(init.base_pose[:2], float)
+        vB = np.asarray(init.base_rate[:2], float)
+        self.frame_ref = np.zeros(6)
+        for k in range(2):
+            th, om = float(init.base_pose[2]), float(init.base_rate[2])
+            mount = np.asarray(p.geometry.mount_B(k + 1), float)
+            pin = rB + _rot(th) @ mount
+            vel = vB + om * _perp(pin - rB)
+            parent_marker = mbs.AddMarker(MarkerBodyPosition(bodyNumber=self.base, localPosition=[*mount, 0.0]))
+            for s in range(3):
+                i = 3 * k + s
+                th += float(init.joint_angles[i])
+                om += float(init.joint_rates[i])
+                terminal = s == 2
+                basis = PP if (not terminal or init.grasp[k]) else PF
+                item = (self._rigid_link if self.rigid else self._flexible_link)(i, pin, th, vel, om, terminal, basis)
+                mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[parent_marker, item.prox_marker]))
+                self.links.append(item)
+                self.frame_ref[i] = th
+                d = L * np.array([math.cos(th), math.sin(th)])
+                pin = pin + d
+                vel = vel + om * _perp(d)
+                parent_marker = item.dist_marker
+
+        # ---- rotors: linear GenericODE2 over [parent θ, child θ, θ_m] (ENGINE-NOTES) ----
+        self.rotor_nodes = []
+        self.motor_loads = []
+        mo = p.motor
+        for j in range(6):
+            parent = self.base_node if j % 3 == 0 else self.links[j - 1].frame_node
+            child = self.links[j].frame_node
+            nr = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[float(init.joint_angles[j])],
+                                             initialCoordinates=[0.0],
+                                             initialCoordinates_t=[float(init.joint_rates[j])],
+                                             numberOfODE2Coordinates=1))
+            v = np.zeros(7)
+            v[2], v[5], v[6] = 1.0, -1.0, 1.0
+            M = np.zeros((7, 7))
+            M[6, 6] = mo.inertia
+            mbs.AddObject(ObjectGenericODE2(nodeNumbers=[parent, child, nr], massMatrix=M,
+                                            stiffnessMatrix=mo.stiffness * np.outer(v, v),
+                                            dampingMatrix=mo.damping * np.outer(v, v)))
+            mr = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=nr, coordinate=0))
+            self.motor_loads.append(mbs.AddLoad(LoadCoordinate(markerNumber=mr, load=0.0)))
+            self.rotor_nodes.append(nr)
+
+        # ---- grasps and wrist bistops ----
+        self.grasp_joints, self.grasp_markers, self.bistops = [], [], []
+        w = p.wrist
+        for k in range(2):
+            link = self.links[3 * k + 2]
+            mt = mbs.AddMarker(MarkerBodyPosition(bodyNumber=self.target, localPosition=[*self.rho_G[k], 0.0]))
+            self.grasp_markers.append(mt)
+            self.grasp_joints.append(mbs.AddObject(ObjectJointRevolute2D(
+                markerNumbers=[mt, link.dist_marker], activeConnector=bool(init.grasp[k]))))
+            psi_ref = float(init.target_pose[2]) - self.frame_ref[3 * k + 2]
+            data = mbs.AddNode(NodeGenericData(initialCoordinates=[0.0, 0.0, 0.0], numberOfDataCoordinates=3))
+            m0 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=link.frame_node, coordinate=2))
+            m1 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=self.target_node, coordinate=2))
+            self.bistops.append(mbs.AddObject(ObjectConnectorCoordinateSpringDamperExt(
+                markerNumbers=[m0, m1], nodeNumber=data, stiffness=0.0, damping=0.0,
+                useLimitStops=True, limitStopsUpper=w.limit - psi_ref, limitStopsLower=-w.limit - psi_ref,
+                limitStopsStiffness=w.stiffness, limitStopsDamping=w.damping,
+                activeConnector=bool(init.grasp[k]))))
+
+        # ---- base actuators ----
+        mb = mbs.AddMarker(MarkerBodyRigid(bodyNumber=self.base, localPosition=[0.0, 0.0, 0.0]))
+        self.base_torque_load = mbs.AddLoad(LoadTorqueVector(markerNumber=mb, loadVector=[0.0, 0.0, 0.0]))
+        self.thrust_load = mbs.AddLoad(LoadForceVector(markerNumber=mb, loadVector=[0.0, 0.0, 0.0], bodyFixed=True))
+
+        # ---- field carrier: generalised forces of the tidal/thrust-inertia field ----
+        self.carrier = None
+        if self.field:
+            self.field_nodes = [self.base_node, self.target_node]
+            for item in self.links:
+                self.field_nodes += item.nodes if not item.rigid else [item.frame_node]
+            self.carrier = mbs.AddObject(ObjectGenericODE2(nodeNumbers=self.field_nodes))
+        mbs.Assemble()
+
+    def _rigid_link(self, i, pin, th, vel, om, terminal, basis) -> LinkItems:
+        mbs, p = self.mbs, self.params
+        L = p.link.length
+        e = np.array([math.cos(th), math.sin(th)])
+        com = pin + 0.5 * L * e
+        v = vel + om * _perp(0.5 * L * e)
+        n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*com, th], initialVelocities=[*v, om]))
+        b = mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=p.link.mass, inertia=p.link.inertia_z))
+        return LinkItems(i, True, n, b,
+                         mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[-0.5 * L, 0.0, 0.0])),
+                         mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[0.5 * L, 0.0, 0.0])),
+                         basis=basis)
+
+    def _flexible_link(self, i, pin, th, vel, om, terminal, basis) -> LinkItems:
+        mbs, p = self.mbs, self.params
+        L, m = p.link.length, p.link.mass
+        nodes, elements = links.add_link(mbs, p.link, self.n_elements, pin, th, vel, om)
+        # frame body: massless, J_extra, origin at the proximal pin
+        nf = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*pin, th], initialVelocities=[*vel, om]))
+        bf = mbs.AddObject(ObjectRigidBody2D(nodeNumber=nf, mass=0.0, inertia=p.link.inertia_extra))
+        prox = mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[0]))
+        dist = mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[-1]))
+        mf_pos = mbs.AddMarker(MarkerBodyPosition(bodyNumber=bf, localPosition=[0.0, 0.0, 0.0]))
+        mf = mbs.AddMarker(MarkerBodyRigid(bodyNumber=bf, localPosition=[0.0, 0.0, 0.0]))
+        mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[prox, mf_pos]))
+        # PP: distal pin on the frame axis
+        tip = mbs.AddMarker(MarkerBodyRigid(bodyNumber=elements[-1], localPosition=[self.mesh.le, 0.0, 0.0]))
+        pp = mbs.AddObject(ObjectJointPrismatic2D(markerNumbers=[tip, mf], axisMarker0=[1.0, 0.0, 0.0],
+                                                  normalMarker1=[0.0, 1.0, 0.0], constrainRotation=False,
+                                                  activeConnector=basis == PP))
+        item = LinkItems(i, False, nf, bf, prox, dist, nodes, elements, pp_joint=pp, basis=basis)
+        if terminal:
+            # PF: P = R + (L/I_0) ∫ρ ξ (r − R) dξ on the frame axis
+            e = np.array([math.cos(th), math.sin(th)])
+            pnode = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*(pin + L * e), 0.0],
+                                                initialVelocities=[*(vel + om * _perp(L * e)), 0.0]))
+            holder = mbs.AddObject(ObjectGenericODE2(nodeNumbers=nodes + [pnode]))
+            nq = self.mesh.nq
+            X = np.zeros((2, nq + 3))
+            X[:, :nq] = -L * self.mesh.moment_matrix()
+            X[0, 0] += 0.5 * L * m * L - self.I0
+            X[1, 1] += 0.5 * L * m * L - self.I0
+            X[0, nq] = X[1, nq + 1] = self.I0
+            mh = mbs.AddMarker(MarkerObjectODE2Coordinates(objectNumber=holder))
+            mbs.AddObject(ObjectConnectorCoordinateVector(markerNumbers=[self.ground_coords, mh],
+                                                          scalingMarker0=np.zeros((2, 0)), scalingMarker1=X))
+            mpr = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=pnode, coordinate=2))
+            mbs.AddObject(CoordinateConstraint(markerNumbers=[self.ground_coord, mpr]))
+            mp = mbs.AddMarker(MarkerNodeRigid(nodeNumber=pnode))
+            item.pf_joint = mbs.AddObject(ObjectJointPrismatic2D(
+                markerNumbers=[mp, mf], axisMarker0=[1.0, 0.0, 0.0], normalMarker1=[0.0, 1.0, 0.0],
+                constrainRotation=False, activeConnector=basis == PF))
+            item.p_node = pnode
+        return item
+
+    def _index(self) -> None:
+        """Global ODE2 indices of the coordinates the engine reads."""
+        mbs = self.mbs
+        idx = mbs.GetNodeODE2Index
+        self.i_base = idx(self.base_node) + np.arange(3)
+        self.i_target = idx(self.target_node) + np.arange(3)
+        self.i_frame = np.array([idx(it.frame_node) + 2 for it in self.links])
+        self.i_rotor = np.array([idx(n) for n in self.rotor_nodes])
+        for it in self.links:
+            if it.rigid:
+                it.coords = idx(it.frame_node) + np.arange(3)
+            else:
+                it.coords = np.concatenate([idx(n) + np.arange(4) for n in it.nodes])
+        self.q_ref = np.asarray(mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Reference))
+        L = self.params.link.length
+        self.first = self.mesh.first_matrix()
+        self.moment = self.mesh.moment_matrix()
+        self.mass_ancf = self.mesh.mass_matrix()
+        self.pos_mid = self.mesh.pos_matrix(0.5 * L)
+        self.pos_tip = self.mesh.pos_matrix(L)
+
+    def _settings(self) -> exu.SimulationSettings:
+        s = exu.SimulationSettings()
+        ti = s.timeIntegration
+        ti.endTime = self.dt
+        ti.numberOfSteps = self.substeps
+        ti.generalizedAlpha.spectralRadius = self.spectral_radius
+        ti.generalizedAlpha.computeInitialAccelerations = True
+        ti.newton.relativeTolerance = self.newton_rtol
+        ti.newton.absoluteTolerance = self.newton_atol
+        ti.newton.useModifiedNewton = True
+        ti.adaptiveStep = True
+        ti.verboseMode = 0
+        ti.reuseConstantMassMatrix = not self.field  # the base loses propellant under thrust
+        s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+        s.solution.file.write = False
+        s.solution.sensors.active = False
+        s.solution.file.writeInitialValues = False
+        return s
+
+    def _init_solver(self) -> None:
+        self.settings = self._settings()
+        self.solver = exu.MainSolverImplicitSecondOrder()
+        self.solver.InitializeSolver(self.mbs, self.settings)
+
+    def _restart(self) -> None:
+        """Restart the integrator from the current (modified) state: consistent
+        accelerations are recomputed (after a capture, release or basis switch)."""
+        self._pause()
+        self._current_to_initial()
+        self.settings.timeIntegration.startTime = self.t
+        self.settings.timeIntegration.endTime = self.t + self.dt
+        self.solver.InitializeSolverInitialConditions(self.mbs, self.settings)
+        self.stats["restarts"] += 1
+
+    def _current_to_initial(self) -> None:
+        sd = self.mbs.systemData
+        ini = exu.ConfigurationType.Initial
+        sd.SetODE2Coordinates(sd.GetODE2Coordinates(), configuration=ini)
+        sd.SetODE2Coordinates_t(sd.GetODE2Coordinates_t(), configuration=ini)
+        sd.SetDataCoordinates(sd.GetDataCoordinates(), configuration=ini)
+
+    def _pause(self) -> None:
+        """Bring the continuous integration to a clean stop at the current control sample
+        (before the state or the items are modified)."""
+        if self._worker is not None:
+            self._worker.stop()
+
+    # =====================================================================================
+    # state access
+    # =====================================================================================
+    def _qv(self) -> tuple[np.ndarray, np.ndarray]:
+        sd = self.mbs.systemData
+        return np.asarray(sd.GetODE2Coordinates()) + self.q_ref, np.asarray(sd.GetODE2Coordinates_t())
+
+    def _frame_angles(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        return q[self.i_frame], v[self.i_frame]
+
+    def _end_effectors(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        L = self.params.link.length
+        r = np.zeros((2, 2))
+        rd = np.zeros((2, 2))
+        for k in range(2):
+            it = self.links[3 * k + 2]
+            qi, vi = q[it.coords], v[it.coords]
+            if it.rigid:
+                d = 0.5 * L * np.array([math.cos(qi[2]), math.sin(qi[2])])
+                r[k] = qi[:2] + d
+                rd[k] = vi[:2] + vi[2] * _perp(d)
+            else:
+                r[k] = qi[-4:-2]
+                rd[k] = vi[-4:-2]
+        return r, rd
+
+    def _mass_base(self) -> float:
+        return self.params.base.mass - self.m_used
+
+    def _link_com_mass(self, it: LinkItems, q) -> np.ndarray:
+        """∫ρ r dξ of a link [kg·m]."""
+        qi = q[it.coords]
+        if it.rigid:
+            return self.params.link.mass * qi[:2]
+        return self.first @ qi
+
+    def _com(self, q) -> tuple[np.ndarray, float]:
+        p = self.params
+        mB = self._mass_base()
+        s = mB * q[self.i_base[:2]] + p.target.mass * q[self.i_target[:2]]
+        for it in self.links:
+            s = s + self._link_com_mass(it, q)
+        m = mB + p.target.mass + 6 * p.link.mass
+        return s / m, m
+
+    # =====================================================================================
+    # Engine protocol
+    # =====================================================================================
+    def time(self) -> float:
+        return self.t
+
+    def sensors(self) -> Sensors:
+        q, v = self._qv()
+        th, om = self._frame_angles(q, v)
+        thB, omB = q[self.i_base[2]], v[self.i_base[2]]
+        parents = np.array([thB, th[0], th[1], thB, th[3], th[4]])
+        parents_d = np.array([omB, om[0], om[1], omB, om[3], om[4]])
+        rE, rEd = self._end_effectors(q, v)
+        com, m = self._com(q)
+        AB_T = _rot(thB).T
+        return Sensors(
+            time=self.t, base_pose_I=q[self.i_base].copy(), base_rate_I=v[self.i_base].copy(),
+            joint_angles=th - parents, joint_rates=om - parents_d,
+            motor_angles=q[self.i_rotor].copy(), motor_rates=v[self.i_rotor].copy(),
+            ee_pos_I=rE, ee_vel_I=rEd,
+            target_pose_I=q[self.i_target].copy(), target_rate_I=v[self.i_target].copy(),
+            com_pos_B=AB_T @ (com - q[self.i_base[:2]]), grasp_state=self.grasp_on.copy(),
+            system_mass=m, orbit_r_I=self.r_O.copy(), orbit_v_I=self.v_O.copy())
+
+    def advance(self, t_next: float, inputs: Inputs) -> None:
+        mbs = self.mbs
+        held = (tuple(np.asarray(inputs.tau_m, float)), float(inputs.tau_B), float(inputs.thrust))
+        thrust = held[2]
+        if thrust != 0.0 and not self.field:
+            raise SimulationDiverged(self.name, self.t, "?", "thrust without field (build with field=True)", thrust)
+        a_thr = np.zeros(2)
+        if self.field:
+            q, _ = self._qv()
+            m_sys = self._com(q)[1]
+            thB = q[self.i_base[2]]
+            a_thr = thrust / m_sys * np.array([math.cos(thB), math.sin(thB)])
+            mbs.SetObjectParameter(self.base, "mass", self._mass_base())
+            mbs.SetObjectParameter(self.carrier, "forceVector", self._field_forces(q, -a_thr))
+        if held != self._held:
+            for j in range(6):
+                mbs.SetLoadParameter(self.motor_loads[j], "load", held[0][j])
+            mbs.SetLoadParameter(self.base_torque_load, "loadVector", [0.0, 0.0, held[1]])
+            mbs.SetLoadParameter(self.thrust_load, "loadVector", [held[2], 0.0, 0.0])
+            if self.restart_on_input_change and self._is_step(held):
+                # a step in the held inputs is a jump in the accelerations: restart the
+                # integrator with accelerations consistent with the new inputs (else the
+                # algorithmic acceleration of generalized-α carries the old ones and the
+                # solution takes an O(h) error at the jump).  Small sample-to-sample changes
+                # of a feedback controller are left to the integrator (O(h²) per change).
+                self._restart()
+            self._held = held
+        solver = self.solver
+        if self._worker is not None:
+            ok = self._worker.step(self.t, t_next)
+        else:
+            solver.it.startTime = self.t
+            solver.it.endTime = t_next
+            ok = solver.SolveSteps(mbs, self.settings)
+        self.stats["steps"] += self.substeps
+        self.stats["newton_iterations"] = int(solver.it.newtonStepsCount)
+        self.stats["jacobians"] = int(solver.it.newtonJacobiCount)
+        q, v = self._qv()
+        if not ok or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            bad = int(np.argmax(~np.isfinite(q))) if not np.all(np.isfinite(q)) else -1
+            raise SimulationDiverged(self.name, self.t, "?",
+                                     "Newton failed (step reduction exhausted)" if ok is False else f"ODE2[{bad}]",
+                                     float(q[bad]) if bad >= 0 else float("nan"))
+        if self.field:
+            self._advance_orbit(t_next - self.t, a_thr)
+            p = self.params.actuators
+            self.m_used += thrust / (p.isp * p.g0) * (t_next - self.t)
+        self.t = t_next
+
+    def _is_step(self, held) -> bool:
+        """True when the inputs jump by more than 1 % of their limits (or thrust switches)."""
+        a = self.params.actuators
+        old = self._held or ((0.0,) * 6, 0.0, 0.0)
+        return (np.max(np.abs(np.subtract(held[0], old[0]))) > 0.01 * self.params.motor.torque_max
+                or abs(held[1] - old[1]) > 0.01 * a.torque_max or abs(held[2] - old[2]) > 0.01 * a.thrust)
+
+    def _advance_orbit(self, h: float, a_thr: np.ndarray) -> None:
+        if not self.orbit and not np.any(a_thr):
+            return
+        mu = self.params.orbit.mu
+
+        def f(r, v):
+            a = a_thr + (fld.kepler(mu, r) if self.orbit else 0.0)
+            return v, a
+
+        r, v = self.r_O, self.v_O
+        k1 = f(r, v)
+        k2 = f(r + 0.5 * h * k1[0], v + 0.5 * h * k1[1])
+        k3 = f(r + 0.5 * h * k2[0], v + 0.5 * h * k2[1])
+        k4 = f(r + h * k3[0], v + h * k3[1])
+        self.r_O = r + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        self.v_O = v + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+
+    def _field_forces(self, q, a_unif) -> np.ndarray:
+        """Generalised forces of the tidal field (exact, at the current positions) and of the
+        uniform field a_unif on the carrier's coordinates, ordered as `field_nodes`."""
+        p = self.params
+        mu = p.orbit.mu
+        out = []
+        for n, (m, pos) in zip((self.base_node, self.target_node),
+                               ((self._mass_base(), q[self.i_base[:2]]), (p.target.mass, q[self.i_target[:2]]))):
+            g = a_unif.copy()
+            if self.orbit:
+                g = g + fld.tidal(mu, self.r_O, pos)
+            out.append(np.array([m * g[0], m * g[1], 0.0]))
+        for it in self.links:
+            qi = q[it.coords]
+            if it.rigid:
+                L = p.link.length
+                xs, ws = links.gauss(8, -0.5 * L, 0.5 * L)
+                e = np.array([math.cos(qi[2]), math.sin(qi[2])])
+                pts = qi[:2] + np.outer(xs, e)
+                g = np.tile(a_unif, (len(xs), 1))
+                if self.orbit:
+                    g = g + fld.tidal(mu, self.r_O, pts)
+                f = p.link.rho_a * ws[:, None] * g
+                lever = pts - qi[:2]
+                out.append(np.array([f[:, 0].sum(), f[:, 1].sum(),
+                                     np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
+            else:
+                Q = self.first.T @ a_unif
+                if self.orbit:
+                    xs, ws, rs = self.mesh.points(qi, N_GAUSS_FIELD)
+                    g = fld.tidal(mu, self.r_O, rs)
+                    Q = Q + self._distributed(g * (p.link.rho_a * ws)[:, None])
+                out.append(Q)
+        return np.concatenate(out)
+
+    def _distributed(self, f_points: np.ndarray) -> np.ndarray:
+        """Σ_g Sᵀ(ξ_g) f_g on a link's coordinates for point forces at the Gauss points of
+        `LinkMesh.points(·, N_GAUSS_FIELD)`."""
+        return self.mesh.sample(N_GAUSS_FIELD)[2].T @ f_points.reshape(-1)
+
+    # ---- switching -----------------------------------------------------------------------
+    def capture(self, arm: int) -> dict[str, float]:
+        self._pause()
+        k = arm - 1
+        info = self._switch_basis(3 * k + 2, PP)
+        q, v = self._qv()
+        rE, _ = self._end_effectors(q, v)
+        XT = q[self.i_target]
+        self.rho_G[k] = _rot(XT[2]).T @ (rE[k] - XT[:2])
+        mbs = self.mbs
+        mbs.SetMarkerParameter(self.grasp_markers[k], "localPosition", [*self.rho_G[k], 0.0])
+        mbs.SetObjectParameter(self.grasp_joints[k], "activeConnector", True)
+        mbs.SetObjectParameter(self.bistops[k], "activeConnector", True)
+        self.grasp_on[k] = 1
+        info["impact_loss_J"] = self._plastic_impact()
+        self._restart()
+        return info
+
+    def release(self, arm: int) -> dict[str, float]:
+        self._pause()
+        k = arm - 1
+        mbs = self.mbs
+        mbs.SetObjectParameter(self.grasp_joints[k], "activeConnector", False)
+        mbs.SetObjectParameter(self.bistops[k], "activeConnector", False)
+        self.grasp_on[k] = 0
+        info = self._switch_basis(3 * k + 2, PF)
+        self._restart()
+        return info
+
+    def _switch_basis(self, i: int, new: str) -> dict[str, float]:
+        """Redefine the frame of terminal link i (docs/physics.md §4.4): the frame body turns
+        by δ to the chord (PP) or to the mass-orthogonal axis (PF); the beam, the pins and
+        the rotor do not move, so θ_J3 jumps by δ and there is no projection residual."""
+        it = self.links[i]
+        if it.rigid or it.basis == new:
+            it.basis = new
+            return {"delta_rad": 0.0, "residual_m": 0.0, "residual_mps": 0.0}
+        q, v = self._qv()
+        qi, vi = q[it.coords], v[it.coords]
+        R, Rd = qi[0:2], vi[0:2]
+        if new == PP:
+            d, dd = qi[-4:-2] - R, vi[-4:-2] - Rd
+        else:
+            m_half = 0.5 * self.params.link.mass * self.params.link.length
+            d, dd = self.moment @ qi - m_half * R, self.moment @ vi - m_half * Rd
+        theta_new = math.atan2(d[1], d[0])
+        omega_new = _cross(d, dd) / float(d @ d)
+        j = self.i_frame[i]
+        th_old = q[j]
+        delta = math.remainder(theta_new - th_old, 2 * math.pi)
+        sd = self.mbs.systemData
+        qc = np.asarray(sd.GetODE2Coordinates())
+        vc = np.asarray(sd.GetODE2Coordinates_t())
+        qc[j] += delta
+        vc[j] = omega_new
+        sd.SetODE2Coordinates(qc)
+        sd.SetODE2Coordinates_t(vc)
+        self.mbs.SetObjectParameter(it.pp_joint, "activeConnector", new == PP)
+        self.mbs.SetObjectParameter(it.pf_joint, "activeConnector", new == PF)
+        it.basis = new
+        return {"delta_rad": float(delta), "residual_m": 0.0, "residual_mps": 0.0}
+
+    def _plastic_impact(self) -> float:
+        """Mass-weighted projection of the velocities on the active constraints
+        (docs/physics.md §4.2): [M Gᵀ; G 0][v⁺; μ] = [M v; 0].  Returns the energy lost."""
+        # matrices at the current state from a separate (static) solver object: the
+        # integrator's own matrices are factorised sparse and must not be disturbed; the
+        # static solver starts from the initial configuration, so current → initial first
+        mbs = self.mbs
+        self._current_to_initial()
+        solver = exu.MainSolverStatic()
+        settings = exu.SimulationSettings()
+        settings.solution.file.write = False
+        settings.solution.sensors.active = False
+        settings.staticSolver.verboseMode = 0
+        settings.linearSolver.solverType = exu.LinearSolverType.EXUdense
+        solver.InitializeSolver(mbs, settings)
+        solver.ComputeMassMatrix(mbs)
+        M = np.asarray(solver.GetSystemMassMatrix())
+        solver.ComputeJacobianAE(mbs, scalarFactor_ODE2=1.0, scalarFactor_ODE2_t=0.0,
+                                 scalarFactor_ODE1=0.0, velocityLevel=False)
+        J = np.asarray(solver.GetSystemJacobian())
+        n2 = solver.GetODE2size()
+        G = J[n2 + solver.GetODE1size():, :n2]
+        G = G[np.any(G != 0.0, axis=1)]
+        v = np.asarray(mbs.systemData.GetODE2Coordinates_t())
+        nc = G.shape[0]
+        K = np.block([[M, G.T], [G, np.zeros((nc, nc))]])
+        sol = np.linalg.lstsq(K, np.concatenate([M @ v, np.zeros(nc)]), rcond=None)[0]
+        vp = sol[:n2]
+        mbs.systemData.SetODE2Coordinates_t(vp)
+        return float(0.5 * v @ M @ v - 0.5 * vp @ M @ vp)
+
+    # ---- observables ---------------------------------------------------------------------
+    def observe(self, inputs: Inputs) -> dict:
+        p = self.params
+        q, v = self._qv()
+        th, om = self._frame_angles(q, v)
+        s = self.sensors()
+        rB = q[self.i_base[:2]]
+        thB = q[self.i_base[2]]
+        AB_T = _rot(thB).T
+        XT = q[self.i_target]
+        rE, rEd = s.ee_pos_I, s.ee_vel_I
+        cap = XT[:2] + _rot(XT[2]) @ self.capture_point
+        reaction = np.zeros(4)
+        residual = np.zeros(4)
+        for k in range(2):
+            if self.grasp_on[k]:
+                lam = np.asarray(self.mbs.GetObjectOutput(self.grasp_joints[k], exu.OutputVariableType.Force))
+                reaction[2 * k:2 * k + 2] = lam[:2]
+                residual[2 * k:2 * k + 2] = rE[k] - (XT[:2] + _rot(XT[2]) @ self.rho_G[k])
+        deflection = np.zeros(6)
+        for it in self.links:
+            if not it.rigid:
+                qi = q[it.coords]
+                n = np.array([-math.sin(th[it.index]), math.cos(th[it.index])])
+                deflection[it.index] = n @ (self.pos_mid @ qi - qi[:2])
+        r_abs = self.r_O + rB
+        radial = r_abs / np.linalg.norm(r_abs) if self.orbit else np.array([1.0, 0.0])
+        along = np.array([-radial[1], radial[0]])
+        d_T = XT[:2] - rB
+        com = self._com(q)[0]
+        return {
+            "time": self.t,
+            "base_pose_I": q[self.i_base].copy(),
+            "target_pose_B": np.array([*(AB_T @ d_T), XT[2] - thB]),
+            "ee1_pos_B": AB_T @ (rE[0] - rB),
+            "ee2_pos_B": AB_T @ (rE[1] - rB),
+            "ee2_speed": float(np.linalg.norm(rEd[1])),
+            "capture_gap_B": AB_T @ (rE[self.capture_arm - 1] - cap),
+            "com_pos_B": AB_T @ (com - rB),
+            "joint_angles": s.joint_angles,
+            "motor_angles": s.motor_angles,
+            "motor_torques": np.asarray(inputs.tau_m, float).copy(),
+            "base_torque": float(inputs.tau_B),
+            "link_deflection": deflection,
+            "target_attitude": float(XT[2]),
+            "reaction_forces_I": reaction,
+            "constraint_residual": residual,
+            "grasp_state": self.grasp_on.astype(float),
+            "energy": self._energy(q, v, s),
+            "momentum_I": self._momentum(q, v),
+            "altitude": float(np.linalg.norm(self.r_O + com) - p.orbit.earth_radius) if self.orbit else 0.0,
+            "target_rel_lvlh": np.array([d_T @ radial, d_T @ along]),
+            "system_mass": float(s.system_mass),
+        }
+
+    def _energy(self, q, v, s: Sensors) -> np.ndarray:
+        p = self.params
+        mB = self._mass_base()
+        vb, vt = v[self.i_base], v[self.i_target]
+        kin = 0.5 * mB * (vb[0] ** 2 + vb[1] ** 2) + 0.5 * p.base.inertia_z * vb[2] ** 2
+        kin += 0.5 * p.target.mass * (vt[0] ** 2 + vt[1] ** 2) + 0.5 * p.target.inertia_z * vt[2] ** 2
+        el = 0.0
+        ei, ea = p.link.ei, p.link.axial_to_bending * p.link.ei
+        for it in self.links:
+            qi, vi = q[it.coords], v[it.coords]
+            if it.rigid:
+                kin += 0.5 * p.link.mass * (vi[0] ** 2 + vi[1] ** 2) + 0.5 * p.link.inertia_z * vi[2] ** 2
+            else:
+                kin += 0.5 * vi @ self.mass_ancf @ vi + 0.5 * p.link.inertia_extra * v[self.i_frame[it.index]] ** 2
+                el += self.mesh.strain_energy(qi, ei, ea)
+        kin += 0.5 * p.motor.inertia * float(np.sum(s.motor_rates**2))
+        el += 0.5 * p.motor.stiffness * float(np.sum((s.motor_angles - s.joint_angles) ** 2))
+        th = q[self.i_frame]
+        for k in range(2):
+            if self.grasp_on[k]:
+                over = abs(q[self.i_target[2]] - th[3 * k + 2]) - p.wrist.limit
+                if over > 0:
+                    el += 0.5 * p.wrist.stiffness * over**2
+        grav = self._tidal_energy(q) if self.orbit else 0.0
+        return np.array([kin, el, grav])
+
+    def _tidal_energy(self, q) -> float:
+        p = self.params
+        mu = p.orbit.mu
+        e = self._mass_base() * float(fld.tidal_potential(mu, self.r_O, q[self.i_base[:2]]))
+        e += p.target.mass * float(fld.tidal_potential(mu, self.r_O, q[self.i_target[:2]]))
+        for it in self.links:
+            qi = q[it.coords]
+            if it.rigid:
+                L = p.link.length
+                xs, ws = links.gauss(8, -0.5 * L, 0.5 * L)
+                pts = qi[:2] + np.outer(xs, [math.cos(qi[2]), math.sin(qi[2])])
+            else:
+                _, ws, pts = self.mesh.points(qi, N_GAUSS_FIELD)
+            e += p.link.rho_a * float(np.sum(ws * fld.tidal_potential(mu, self.r_O, pts)))
+        return e
+
+    def _momentum(self, q, v) -> np.ndarray:
+        p = self.params
+        mB = self._mass_base()
+        qb, vb, qt, vt = q[self.i_base], v[self.i_base], q[self.i_target], v[self.i_target]
+        lin = mB * vb[:2] + p.target.mass * vt[:2]
+        ang = mB * _cross(qb[:2], vb[:2]) + p.base.inertia_z * vb[2]
+        ang += p.target.mass * _cross(qt[:2], vt[:2]) + p.target.inertia_z * vt[2]
+        for it in self.links:
+            qi, vi = q[it.coords], v[it.coords]
+            if it.rigid:
+                lin = lin + p.link.mass * vi[:2]
+                ang += p.link.mass * _cross(qi[:2], vi[:2]) + p.link.inertia_z * vi[2]
+            else:
+                lin = lin + self.first @ vi
+                _, ws, rs = self.mesh.points(qi, N_GAUSS_FIELD)
+                _, _, vs = self.mesh.points(vi, N_GAUSS_FIELD)
+                ang += p.link.rho_a * float(np.sum(ws * (rs[:, 0] * vs[:, 1] - rs[:, 1] * vs[:, 0])))
+                ang += p.link.inertia_extra * v[self.i_frame[it.index]]
+        return np.array([lin[0], lin[1], ang])
+
+    # ---- metadata ------------------------------------------------------------------------
+    def solver_settings(self) -> dict:
+        return {"integrator": "Exudyn generalized-alpha, index 3, fixed step",
+                "step": self.dt / self.substeps, "substeps": self.substeps,
+                "spectral_radius": self.spectral_radius, "newton_rtol": self.newton_rtol, "newton_atol": self.newton_atol,
+                "control_period": self.dt,
+                "links": "rigid bodies" if self.rigid else f"ANCFCable2D x {self.n_elements}",
+                "steps": self.stats["steps"], "newton_iterations": self.stats["newton_iterations"],
+                "jacobians": self.stats["jacobians"], "restarts": self.stats["restarts"],
+                "stepping": self.stepping}
+
+    def versions(self) -> dict[str, str]:
+        return package_versions("rsmcheck", "exudyn", "numpy")
+
+
+class _Worker:
+    """Continuous integration across control periods.
+
+    `SolveSteps` forces a new Jacobian (and factorisation) each time it is called: 75 % of
+    the cost when it is called once per 1 ms control period.  Here one `SolveSteps` runs in
+    a worker thread over many periods, and a post-step function (Python, once per time
+    step, no computation) pauses it at every control sample: the runner reads sensors and
+    observables and sets the held inputs while the solver waits, then lets it run to the
+    next sample.  Before the model or its state is modified (capture, release, restart)
+    the run is ended cleanly at the current sample (its end time is set to now).  Fixed
+    steps (no step-size adaptation), so every control sample is a step boundary; a Newton
+    failure ends the run and is reported as divergence.
+    """
+
+    def __init__(self, engine: "ExudynEngine"):
+        # no reference to the engine itself (the paused thread would keep it alive): the
+        # engine's finalizer stops the thread when the engine is dropped
+        self.mbs, self.solver, self.settings, self.dt = engine.mbs, engine.solver, engine.settings, engine.dt
+        self.go = threading.Event()
+        self.arrived = threading.Event()
+        self.command = "continue"
+        self.thread: threading.Thread | None = None
+        self.ok = True
+        self.t_start = 0.0
+        self.mbs.SetPostStepUserFunction(self._post_step)
+
+    def _post_step(self, mbs, t: float) -> bool:
+        if self.thread is None or threading.current_thread() is not self.thread or t <= self.t_start + 1e-12:
+            return True
+        k = t / self.dt
+        if abs(k - round(k)) > 1e-6:
+            return True  # a sub-step inside the control period
+        self.arrived.set()
+        self.go.wait()
+        self.go.clear()
+        if self.command == "stop":
+            self.solver.it.endTime = t  # the run ends here, cleanly, at this sample
+        return True
+
+    def _run(self) -> None:
+        try:
+            self.ok = bool(self.solver.SolveSteps(self.mbs, self.settings))
+        except Exception:  # noqa: BLE001 — reported to the main thread as a failed run
+            self.ok = False
+        finally:
+            self.arrived.set()
+
+    def step(self, t: float, t_next: float) -> bool:
+        """Integrate from t to t_next (the next control sample); False on failure."""
+        if self.thread is None or not self.thread.is_alive():
+            solver = self.solver
+            solver.it.startTime = t
+            solver.it.endTime = 1e30
+            solver.it.adaptiveStep = False
+            self.t_start = t
+            self.ok = True
+            self.arrived.clear()
+            self.go.clear()
+            self.thread = threading.Thread(target=self._run, name="exudyn-solver", daemon=True)
+            self.thread.start()
+        else:
+            self.command = "continue"
+            self.go.set()
+        self.arrived.wait()
+        self.arrived.clear()
+        if not self.thread.is_alive() or not self.ok:
+            self.thread.join()
+            self.thread = None
+            return False
+        return abs(self.mbs.systemData.GetTime() - t_next) < 1e-9 * max(1.0, t_next)
+
+    def stop(self) -> None:
+        if self.thread is not None and self.thread.is_alive():
+            self.command = "stop"
+            self.go.set()
+            self.thread.join()
+        self.thread = None
