@@ -224,7 +224,7 @@ class ReferenceModel:
         x[lay.motors_d] = x[lay.ns + 3:lay.ns + 9]
         return x
 
-    def _cfg_for(self, grasp: Sequence[bool], rho_exact: bool = True) -> Configuration:
+    def _cfg_for(self, grasp: Sequence[bool]) -> Configuration:
         g = np.array([1 if grasp[0] else 0, 1 if grasp[1] else 0], dtype=np.int64)
         rho = np.array([self.params.geometry.grasp_T(1), self.params.geometry.grasp_T(2)], float)
         return Configuration(grasp_on=g, rho_G=rho, basis=terminal_basis(g))
