@@ -1,16 +1,21 @@
 """Case files: declarative TOML in cases/, loaded into typed objects and validated.
 
-A case names its initial state, duration, controller, scheduled events, solver settings,
-parameter overrides and a `short` duration for CI.  Everything is checked before
-anything runs: an unknown key, a wrong type, an out-of-range or inconsistent value raises
-`InputError(file, key, reason)`; the command line turns it into one line and exit 2.
+A case names its initial state (or the stored end state of another case it starts from),
+duration, controller and motion programme, scheduled events, solver settings, parameter
+overrides, the observables engines are compared on with their tolerances, and a `short`
+variant for CI.  Everything is checked before anything runs: an unknown key, a wrong type,
+an out-of-range or inconsistent value raises `InputError(file, key, reason)`; the command
+line turns it into one line and exit 2.  docs/cases.md describes every case.
 
 Format (every key optional unless marked):
 
     name = "free_drift"              # required, equal to the file stem
     description = "..."              # required, one line
     duration = 20.0                  # required [s]
-    short_duration = 5.0             # [s], the `--short` variant (default: duration)
+    short_duration = 5.0             # [s] shorthand for [short] duration
+    start_from = "p1_transport"      # chain: start from the end state stored by a run of
+                                     # that case (rsmcheck.chain); [initial] is then the
+                                     # stand-alone start (omit it: the case only chains)
 
     [initial]
     base_pose = [x, y, θ]            # [m, m, rad]
@@ -19,34 +24,79 @@ Format (every key optional unless marked):
     joint_rates = [6 values]         # [rad/s]
     grasp = [1, 0]                   # which arms hold the target at t = 0
     wrist_angle_deg = 0.0            # ψ of the first holding arm
+    wrist_rate = 0.0                 # ψ̇ of the first holding arm [rad/s]
+    held_points = [[x, y], [x, y]]   # points held at t = 0, target frame about its
+                                     # geometric centre (default: params.geometry grasps)
     target_pose = [x, y, θ]          # only when no arm holds the target
     target_rate = [ẋ, ẏ, θ̇]
 
     [orbit]
     enabled = false                  # tidal gravity about the co-moving point O
+    altitude = 700e3                 # [m] circular orbit at t = 0 (default params.orbit)
+    align = "fixed" | "retrograde"   # O on +X_I, or the orbit phase at which the
+                                     # velocity points along −x_B (burns start aligned)
+    centre_on_com = true             # O at the system COM, moving with it
 
     [controller]
-    kind = "none" | "constant"
+    kind = "none" | "constant" | "programme"
     motor_torques = [6 values]       # "constant": held τ_m [N·m]
     base_torque = 0.0
+    feedback = "measured" | "kinematic"   # "programme": end-effector position in e_EE
+    rate_filter_hz = 0.0             # first-order low-pass on θ̇_J in eq. (14); 0 = none
+    gains = "..."                    # one sentence: how the gains were chosen
+    [controller.base]                # eq. (13)
+    kp = 0.0                         # [N·m/rad]
+    kd = 0.0                         # [N·m·s/rad]
+    [controller.arm1]                # eq. (14), same for arm2
+    kp = [kx, ky, kφ]                # on e_EE = (x, y, φ) [N/m, N/m, N·m/rad]
+    kd = [3 values]                  # on θ̇_J [N·m·s/rad]
 
-    [[release]]                      # scheduled releases
+    [[segment]]                      # "programme": the motion programme, in order
+    name = "transport"               # required
+    duration = 600.0                 # required [s]; the last segment lasts to the end
+    until = "capture"                # end early when this segment's capture happens
+    settle = 0.0                     # [s] after the capture before the segment ends
+    thrust = false                   # apogee motor on during the segment
+    base = "hold"                    # hold | freeze | angle | retrograde | off
+    base_angle_deg = 0.0             # base = "angle"
+    release = [1]                    # arms released at the segment start
+    capture = { arm = 2, point = "grasp2" }   # IF conditions evaluated in the segment
+    arm1 = { mode = "hold" }         # hold | freeze | move | approach | carry | off | torque
+    arm2 = { mode = "move", to = [x, y, φ_deg], time = 600.0 }
+    target = { mode = "move", to = [x, y, θ_deg] }   # move | push | com_align
+    control_period = 0.02            # [s] a longer sample for a quiet segment (a coast)
+
+    [[release]]                      # scheduled releases (time-based)
     time = 1.0
     arm = 1
 
     [capture]
     arm = 2                          # arm whose gap is reported and that may capture
     enabled = false                  # evaluate the IF conditions each sample
+    point = "grasp2"                 # designated point ("grasp1", "grasp2" or [x, y])
 
     [solver]
     control_period = 1e-3            # [s] controller sample, zero-order hold
     output_period = 1e-2             # [s] observable sampling, multiple of control_period
     rtol = 1e-9
+    integrator = "dopri5"            # the reference's: dopri5 | trbdf2 (stiff, quiet phases)
 
     [reference]
     n_modes = 2                      # modes per link (0 = rigid), int or 6 ints
 
     [params]                         # overrides of rsmcheck.params.Params, by section
+
+    [compare.OBSERVABLE]             # engines compared on this observable (issue 5)
+    tolerance = 1e-3                 # required, > 0, in the observable's unit
+    why = "..."                      # required: one sentence justifying the tolerance
+    metric = "max_abs"               # max_abs | rms | final
+
+    [short]                          # the --short variant: replaces these keys
+    duration = 5.0                   # (duration, segment, release, capture, controller,
+    [[short.segment]] ...            #  solver, compare); the mechanics stay the same
+
+A sequence case (the mission) has only `name`, `description`, `phases` (case names, each
+starting from the previous one's end state) and `short_phases` (the sequence for --short).
 """
 
 from __future__ import annotations
@@ -54,7 +104,7 @@ from __future__ import annotations
 import hashlib
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -62,6 +112,21 @@ from rsmcheck.errors import InputError
 from rsmcheck.params import Params
 
 CASES_DIR = Path(__file__).resolve().parent
+
+#: observables a [compare] table may name (SPEC §4), without importing numpy-heavy modules
+OBSERVABLE_NAMES = (
+    "time", "base_pose_I", "target_pose_B", "ee1_pos_B", "ee2_pos_B", "ee2_speed",
+    "capture_gap_B", "com_pos_B", "joint_angles", "motor_angles", "motor_torques",
+    "base_torque", "link_deflection", "target_attitude", "reaction_forces_I",
+    "constraint_residual", "grasp_state", "energy", "momentum_I", "altitude",
+    "target_rel_lvlh", "system_mass",
+)
+ARM_MODES = ("hold", "freeze", "move", "approach", "carry", "off", "torque")
+TARGET_MODES = ("move", "push", "com_align")
+BASE_MODES = ("hold", "freeze", "angle", "retrograde", "off")
+METRICS = ("max_abs", "rms", "final")
+#: top-level keys a [short] table may replace
+SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare")
 
 
 @dataclass(frozen=True)
@@ -74,6 +139,28 @@ class InitialSpec:
     wrist_angle_deg: float = 0.0
     target_pose: tuple[float, float, float] | None = None
     target_rate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wrist_rate: float = 0.0
+    held_points: tuple[tuple[float, float], tuple[float, float]] | None = None  # centre frame
+
+
+@dataclass(frozen=True)
+class OrbitSpec:
+    enabled: bool = False
+    altitude: float | None = None  # None: params.orbit.altitude_initial
+    align: str = "fixed"
+    centre_on_com: bool = True
+
+
+@dataclass(frozen=True)
+class BaseGains:
+    kp: float = 0.0
+    kd: float = 0.0
+
+
+@dataclass(frozen=True)
+class ArmGains:
+    kp: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    kd: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -81,6 +168,61 @@ class ControllerSpec:
     kind: str = "none"
     motor_torques: tuple[float, ...] = (0.0,) * 6
     base_torque: float = 0.0
+    feedback: str = "measured"
+    rate_filter_hz: float = 0.0  # first-order low-pass on θ̇_J of eq. (14); 0 = none
+    gains: str = ""
+    base: BaseGains = BaseGains()
+    arm1: ArmGains = ArmGains()
+    arm2: ArmGains = ArmGains()
+
+
+@dataclass(frozen=True)
+class ArmCommand:
+    """What one arm does during a segment (see rsmcheck.controllers)."""
+
+    mode: str = "hold"
+    to: tuple[float, float, float] | None = None  # move: x, y [m], φ [deg], base frame
+    time: float | None = None  # duration of the move [s] (default: the segment's)
+    point_T: tuple[float, float] | None = None  # approach: target frame about the COM
+    phi_deg: float | None = None  # approach: final terminal-link attitude
+    torques: tuple[float, float, float] = (0.0, 0.0, 0.0)  # torque: open loop [N·m]
+
+
+@dataclass(frozen=True)
+class TargetCommand:
+    """A closed-chain (or single-arm) move of the target by the arms in mode "carry"."""
+
+    mode: str = "move"
+    to: tuple[float, float, float] | None = None  # move: x, y [m], θ [deg], base frame
+    by: tuple[float, float] = (0.0, 0.0)  # push: displacement [m], base frame
+    time: float | None = None
+    tolerance: float = 1e-3  # com_align: |y_COM| goal [m]
+    step_time: float = 20.0  # com_align: duration of one move [s]
+    settle_time: float = 10.0  # com_align: wait after a move [s]
+    max_iterations: int = 8
+
+
+@dataclass(frozen=True)
+class CaptureCommand:
+    arm: int
+    point_T: tuple[float, float]  # target frame about the COM
+
+
+@dataclass(frozen=True)
+class Segment:
+    name: str
+    duration: float
+    until: str = ""
+    settle: float = 0.0
+    thrust: bool = False
+    base: str = "hold"
+    base_angle_deg: float = 0.0
+    release: tuple[int, ...] = ()
+    capture: CaptureCommand | None = None
+    arm1: ArmCommand = ArmCommand()
+    arm2: ArmCommand = ArmCommand()
+    target: TargetCommand | None = None
+    control_period: float | None = None  # None: the case's [solver] control_period
 
 
 @dataclass(frozen=True)
@@ -93,6 +235,7 @@ class ReleaseSpec:
 class CaptureSpec:
     arm: int = 2
     enabled: bool = False
+    point_T: tuple[float, float] | None = None  # None: params.geometry.grasp_T(arm)
 
 
 @dataclass(frozen=True)
@@ -100,10 +243,19 @@ class SolverSpec:
     control_period: float = 1e-3
     output_period: float = 1e-2
     rtol: float = 1e-9
+    integrator: str = "dopri5"  # the reference engine's: dopri5 | trbdf2
 
     @property
     def output_every(self) -> int:
         return int(round(self.output_period / self.control_period))
+
+
+@dataclass(frozen=True)
+class CompareSpec:
+    observable: str
+    tolerance: float
+    why: str
+    metric: str = "max_abs"
 
 
 @dataclass(frozen=True)
@@ -123,15 +275,42 @@ class Case:
     path: str
     file_hash: str
     raw: Mapping[str, Any] = field(repr=False, default_factory=dict)
+    orbit_spec: OrbitSpec = OrbitSpec()
+    segments: tuple[Segment, ...] = ()
+    compare: tuple[CompareSpec, ...] = ()
+    start_from: str | None = None
+    has_initial: bool = True
+    is_short: bool = False
+    short: "Case | None" = field(default=None, repr=False)
+    #: a sequence case (the mission): the phase cases it runs in order, each chained
+    phases: tuple[str, ...] = ()
+    #: the common rigid part of the end state this run starts from (set by rsmcheck.chain)
+    start_state: Mapping[str, Any] | None = field(default=None, repr=False)
+    #: engine-specific exact states of that end state, by engine name (rsmcheck.chain)
+    start_exact: Mapping[str, Any] | None = field(default=None, repr=False)
 
     def run_duration(self, short: bool) -> float:
         return self.short_duration if short else self.duration
+
+    def variant(self, short: bool) -> "Case":
+        """The case to run: its `[short]` variant with `short`, else itself."""
+        if short and self.short is not None:
+            return self.short
+        return self
+
+    def capture_point_T(self, arm: int | None = None) -> tuple[float, float]:
+        """Designated capture point of the case-level [capture] (target frame, about COM)."""
+        arm = arm or self.capture.arm
+        if self.capture.point_T is not None and arm == self.capture.arm:
+            return self.capture.point_T
+        return self.params.geometry.grasp_T(arm)
 
 
 # ---------------------------------------------------------------------------------------
 # Field checkers: each returns the converted value or raises InputError(where, key, why)
 # ---------------------------------------------------------------------------------------
-def _number(where: str, key: str, v: Any, lo: float | None = None, lo_open: bool = False) -> float:
+def _number(where: str, key: str, v: Any, lo: float | None = None, lo_open: bool = False,
+            hi: float | None = None) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise InputError(where, key, f"must be a number, got {type(v).__name__}")
     v = float(v)
@@ -139,13 +318,21 @@ def _number(where: str, key: str, v: Any, lo: float | None = None, lo_open: bool
         raise InputError(where, key, f"must be finite, got {v}")
     if lo is not None and (v <= lo if lo_open else v < lo):
         raise InputError(where, key, f"must be {'>' if lo_open else '>='} {lo}, got {v}")
+    if hi is not None and v > hi:
+        raise InputError(where, key, f"must be <= {hi}, got {v}")
     return v
 
 
-def _vector(where: str, key: str, v: Any, n: int) -> tuple[float, ...]:
+def _integer(where: str, key: str, v: Any, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise InputError(where, key, f"must be an integer {lo}..{hi}, got {v!r}")
+    return v
+
+
+def _vector(where: str, key: str, v: Any, n: int, lo: float | None = None, lo_open: bool = False) -> tuple[float, ...]:
     if not isinstance(v, list) or len(v) != n:
         raise InputError(where, key, f"must be a list of {n} numbers")
-    return tuple(_number(where, f"{key}[{i}]", x) for i, x in enumerate(v))
+    return tuple(_number(where, f"{key}[{i}]", x, lo, lo_open) for i, x in enumerate(v))
 
 
 def _flag(where: str, key: str, v: Any) -> bool:
@@ -177,6 +364,12 @@ def _table(where: str, key: str, v: Any, known: Mapping[str, Callable[[str, Any]
     return out
 
 
+def _require(where: str, key: str, table: Mapping[str, Any], names: tuple[str, ...]) -> None:
+    for k in names:
+        if k not in table:
+            raise InputError(where, f"{key}.{k}", "missing (required)")
+
+
 # ---------------------------------------------------------------------------------------
 def case_path(name_or_path: str | Path) -> Path:
     """cases/NAME.toml for a bare name, else the path as given."""
@@ -184,6 +377,13 @@ def case_path(name_or_path: str | Path) -> Path:
     if p.suffix == ".toml" or p.parent != Path("."):
         return p
     return CASES_DIR / f"{name_or_path}.toml"
+
+
+def sibling_case(name: str, path: Path) -> Path:
+    """The case `name` referred to from the case file `path`: NAME.toml next to it, else
+    cases/NAME.toml."""
+    near = Path(path).parent / f"{name}.toml"
+    return near if near.is_file() else case_path(name)
 
 
 def list_cases() -> list[Path]:
@@ -202,13 +402,112 @@ def load_case(name_or_path: str | Path) -> Case:
         raw = tomllib.loads(data.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(where, "toml", str(exc)) from None
-    return _parse(raw, where, path, hashlib.sha256(data).hexdigest())
+    digest = hashlib.sha256(data).hexdigest()
+    if "phases" in raw:
+        return _parse_sequence(raw, where, path, digest)
+    return _parse_with_short(raw, where, path, digest)
 
 
-def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str) -> Case:
+def _parse_sequence(raw: Mapping[str, Any], where: str, path: Path, digest: str) -> Case:
+    """A case that runs other cases in sequence (`phases`), each from the previous end state.
+
+    `short_phases` (default: `phases`) is the sequence run with --short: each phase's short
+    variant, chained (a short phase need not end where the next one's short variant can
+    start, e.g. p1's short variant does not bring the target into arm 2's reach)."""
     w = where
+    for k in raw:
+        if k not in ("name", "description", "phases", "short_phases"):
+            raise InputError(w, k, "not allowed in a sequence case (known: description, name, phases, "
+                             "short_phases)")
+    for k in ("name", "description"):
+        if k not in raw:
+            raise InputError(w, k, "missing (required)")
+    name = _text(w, "name", raw["name"])
+    if name != path.stem:
+        raise InputError(w, "name", f"'{name}' differs from the file name '{path.stem}'")
+    full = _sequence(w, "phases", raw["phases"], name, path)
+    short = _sequence(w, "short_phases", raw.get("short_phases", raw["phases"]), name, path)
+    description = _text(w, "description", raw["description"])
+
+    def build(cases: list[Case], key: str, is_short: bool) -> Case:
+        first = cases[0]
+        return replace(first, name=name, description=description,
+                       duration=sum(c.variant(is_short).duration for c in cases),
+                       short_duration=sum(c.variant(True).duration for c in cases), path=w,
+                       file_hash=digest, raw=raw, phases=tuple(c.name for c in cases), short=None,
+                       segments=(), compare=(), start_from=None, is_short=is_short)
+
+    short_case = build(short, "short_phases", True)
+    full_case = build(full, "phases", False)
+    return replace(full_case, short_duration=short_case.duration, short=short_case)
+
+
+def _sequence(w: str, key: str, names: Any, name: str, path: Path) -> list[Case]:
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise InputError(w, key, "must be a non-empty list of case names")
+    cases = []
+    for i, n in enumerate(names):
+        if n == name or not sibling_case(n, path).is_file():
+            raise InputError(w, f"{key}[{i}]", f"no case '{n}' to run as a phase")
+        try:
+            c = load_case(sibling_case(n, path))
+        except InputError as exc:
+            raise InputError(w, f"{key}[{i}]", f"case '{n}' is invalid: {exc}") from None
+        if c.phases:
+            raise InputError(w, f"{key}[{i}]", f"'{n}' is itself a sequence")
+        if i == 0 and not c.has_initial:
+            raise InputError(w, f"{key}[0]", f"'{n}' has no [initial] to start the sequence from")
+        if i > 0 and c.start_from != names[i - 1]:
+            raise InputError(w, f"{key}[{i}]", f"'{n}' starts from {c.start_from!r}, not from the "
+                             f"previous phase '{names[i - 1]}'")
+        cases.append(c)
+    return cases
+
+
+def _parse_with_short(raw: Mapping[str, Any], where: str, path: Path, digest: str) -> Case:
+    w = where
+    short_raw = raw.get("short")
+    if short_raw is not None and not isinstance(short_raw, Mapping):
+        raise InputError(w, "short", "must be a table")
+    short_raw = dict(short_raw or {})
+    for k in short_raw:
+        if k not in SHORT_KEYS:
+            raise InputError(w, f"short.{k}", f"cannot be changed by the short variant "
+                             f"(allowed: {', '.join(SHORT_KEYS)})")
+    if "short_duration" in raw:
+        if "duration" in short_raw:
+            raise InputError(w, "short_duration", "given twice (also as short.duration)")
+        short_raw["duration"] = raw["short_duration"]
+    base = {k: v for k, v in raw.items() if k not in ("short", "short_duration")}
+    full = _parse(base, w, path, digest)
+    if not short_raw:
+        return full
+    merged = dict(base)
+    merged.update(short_raw)
+    keys = {k: f"short.{k}" for k in short_raw}
+    if "short_duration" in raw:
+        keys["duration"] = "short_duration"
+    short = _parse(merged, w, path, digest, short_keys=keys)
+    if short.duration > full.duration:
+        key = "short_duration" if "short_duration" in raw else "short.duration"
+        raise InputError(w, key, f"{short.duration} s exceeds duration {full.duration} s")
+    return replace(full, short_duration=short.duration, short=short, raw=raw)
+
+
+def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
+           short_keys: Mapping[str, str] | None = None) -> Case:
+    """One variant.  `short_keys`: for the short variant, the keys it replaced and the name
+    under which an error in them is reported (short.X, or short_duration)."""
+    w = where
+    is_short = short_keys is not None
+    short_keys = short_keys or {}
+
+    def kname(k: str) -> str:
+        return short_keys.get(k, k)
+
     top = {"name", "description", "duration", "short_duration", "initial", "orbit", "controller",
-           "release", "capture", "solver", "reference", "params"}
+           "release", "capture", "solver", "reference", "params", "segment", "compare",
+           "start_from", "short"}
     for k in raw:
         if k not in top:
             raise InputError(w, k, f"unknown key (known: {', '.join(sorted(top))})")
@@ -218,10 +517,34 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str) -> Case:
     name = _text(w, "name", raw["name"])
     if name != path.stem:
         raise InputError(w, "name", f"'{name}' differs from the file name '{path.stem}'")
-    duration = _number(w, "duration", raw["duration"], 0.0, lo_open=True)
-    short = _number(w, "short_duration", raw.get("short_duration", duration), 0.0, lo_open=True)
-    if short > duration:
-        raise InputError(w, "short_duration", f"{short} s exceeds duration {duration} s")
+    duration = _number(w, kname("duration"), raw["duration"], 0.0, lo_open=True)
+
+    start_from = None
+    if "start_from" in raw:
+        start_from = _text(w, "start_from", raw["start_from"])
+        if start_from == name:
+            raise InputError(w, "start_from", "a case cannot start from its own end state")
+        if not sibling_case(start_from, path).is_file():
+            known = ", ".join(p.stem for p in list_cases())
+            raise InputError(w, "start_from", f"no case '{start_from}' (known cases: {known})")
+    has_initial = "initial" in raw or start_from is None
+
+    params = Params.from_overrides(raw.get("params", {}), w)
+    geo = params.geometry
+
+    def point(key: str, v: Any, arm: int | None) -> tuple[float, float]:
+        """A point of the target: "grasp1"/"grasp2" or [x, y] about the geometric centre;
+        returned in the target frame about the COM."""
+        if isinstance(v, str):
+            if v not in ("grasp1", "grasp2"):
+                raise InputError(w, key, f"must be \"grasp1\", \"grasp2\" or [x, y], got {v!r}")
+            return geo.grasp_T(1 if v == "grasp1" else 2)
+        x, y = _vector(w, key, v, 2)
+        half = 0.5 * params.target.side
+        if max(abs(x), abs(y)) > half * (1 + 1e-9):
+            raise InputError(w, key, f"({x}, {y}) lies outside the target (half side {half} m)")
+        o = geo.target_com_offset_T
+        return (x - o[0], y - o[1])
 
     ini = _table(w, "initial", raw.get("initial", {}), {
         "base_pose": lambda k, v: _vector(w, k, v, 3),
@@ -230,6 +553,8 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str) -> Case:
         "joint_rates": lambda k, v: _vector(w, k, v, 6),
         "grasp": lambda k, v: _grasp(w, k, v),
         "wrist_angle_deg": lambda k, v: _number(w, k, v),
+        "wrist_rate": lambda k, v: _number(w, k, v),
+        "held_points": lambda k, v: _held_points(w, k, v, point),
         "target_pose": lambda k, v: _vector(w, k, v, 3),
         "target_rate": lambda k, v: _vector(w, k, v, 3),
     })
@@ -237,66 +562,333 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str) -> Case:
     if any(initial.grasp) and initial.target_pose is not None:
         raise InputError(w, "initial.target_pose", "given although an arm holds the target "
                          "(the grasp fixes the target pose)")
-    if not any(initial.grasp) and initial.target_pose is None:
+    if not any(initial.grasp) and initial.target_pose is None and has_initial:
         raise InputError(w, "initial.target_pose", "required when no arm holds the target")
+    if not any(initial.grasp) and (initial.wrist_rate or initial.wrist_angle_deg):
+        raise InputError(w, "initial.wrist_rate" if initial.wrist_rate else "initial.wrist_angle_deg",
+                         "given although no arm holds the target")
 
-    orbit = _table(w, "orbit", raw.get("orbit", {}), {"enabled": lambda k, v: _flag(w, k, v)})
-    ctrl = _table(w, "controller", raw.get("controller", {}), {
-        "kind": lambda k, v: _choice(w, k, v, ("none", "constant")),
-        "motor_torques": lambda k, v: _vector(w, k, v, 6),
-        "base_torque": lambda k, v: _number(w, k, v),
+    orb = _table(w, "orbit", raw.get("orbit", {}), {
+        "enabled": lambda k, v: _flag(w, k, v),
+        "altitude": lambda k, v: _number(w, k, v, 100e3, hi=50000e3),
+        "align": lambda k, v: _choice(w, k, v, ("fixed", "retrograde")),
+        "centre_on_com": lambda k, v: _flag(w, k, v),
     })
-    controller = ControllerSpec(**ctrl)
+    orbit_spec = OrbitSpec(**orb)
+    if not orbit_spec.enabled and len(orb) > ("enabled" in orb):
+        extra = sorted(set(orb) - {"enabled"})[0]
+        raise InputError(w, f"orbit.{extra}", "given although the orbit is not enabled")
+
+    controller = _controller(w, kname("controller"), raw.get("controller", {}))
 
     rel_raw = raw.get("release", [])
     if not isinstance(rel_raw, list):
-        raise InputError(w, "release", "must be an array of tables ([[release]])")
+        raise InputError(w, kname("release"), "must be an array of tables ([[release]])")
     releases = []
     for n, item in enumerate(rel_raw):
-        r = _table(w, f"release[{n}]", item, {
+        key = f"{kname('release')}[{n}]"
+        r = _table(w, key, item, {
             "time": lambda k, v: _number(w, k, v, 0.0),
             "arm": lambda k, v: _arm(w, k, v),
         })
-        for k in ("time", "arm"):
-            if k not in r:
-                raise InputError(w, f"release[{n}].{k}", "missing (required)")
+        _require(w, key, r, ("time", "arm"))
         if r["time"] >= duration:
-            raise InputError(w, f"release[{n}].time", f"{r['time']} s is not before the end ({duration} s)")
-        if not initial.grasp[r["arm"] - 1]:
-            raise InputError(w, f"release[{n}].arm", f"arm {r['arm']} does not hold the target at t = 0")
+            raise InputError(w, f"{key}.time", f"{r['time']} s is not before the end ({duration} s)")
+        if not initial.grasp[r["arm"] - 1] and has_initial and start_from is None:
+            raise InputError(w, f"{key}.arm", f"arm {r['arm']} does not hold the target at t = 0")
         releases.append(ReleaseSpec(**r))
 
-    cap = CaptureSpec(**_table(w, "capture", raw.get("capture", {}), {
+    cap_raw = _table(w, kname("capture"), raw.get("capture", {}), {
         "arm": lambda k, v: _arm(w, k, v),
         "enabled": lambda k, v: _flag(w, k, v),
-    }))
-    solver = SolverSpec(**_table(w, "solver", raw.get("solver", {}), {
-        "control_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
+        "point": lambda k, v: v,
+    })
+    cap_arm = cap_raw.get("arm", 2)
+    cap_point = point(f"{kname('capture')}.point", cap_raw["point"], cap_arm) if "point" in cap_raw else None
+    cap = CaptureSpec(arm=cap_arm, enabled=cap_raw.get("enabled", False), point_T=cap_point)
+    if cap.enabled and initial.grasp[cap.arm - 1] and has_initial and start_from is None:
+        raise InputError(w, f"{kname('capture')}.enabled", f"arm {cap.arm} already holds the target at t = 0")
+
+    solver = SolverSpec(**_table(w, kname("solver"), raw.get("solver", {}), {
+        "control_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True, hi=0.1),
         "output_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
         "rtol": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
+        "integrator": lambda k, v: _choice(w, k, v, ("dopri5", "trbdf2")),
     }))
     ratio = solver.output_period / solver.control_period
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-        raise InputError(w, "solver.output_period", "must be a whole multiple of solver.control_period")
+        raise InputError(w, kname("solver") + ".output_period", "must be a whole multiple of solver.control_period")
     if solver.rtol >= 1e-2:
-        raise InputError(w, "solver.rtol", f"{solver.rtol} is too loose to mean anything (< 1e-2)")
+        raise InputError(w, kname("solver") + ".rtol", f"{solver.rtol} is too loose to mean anything (< 1e-2)")
+    steps = duration / solver.control_period
+    if abs(steps - round(steps)) > 1e-6 * max(1.0, steps):
+        raise InputError(w, kname("duration"), f"{duration} s is not a whole number of control periods "
+                         f"({solver.control_period} s)")
 
     ref = _table(w, "reference", raw.get("reference", {}), {"n_modes": lambda k, v: _modes(w, k, v)})
     n_modes = ref.get("n_modes", (2,) * 6)
-    params = Params.from_overrides(raw.get("params", {}), w)
+
+    segments = _segments(w, kname("segment"), raw.get("segment", []), duration, point)
+    if segments and controller.kind != "programme":
+        raise InputError(w, kname("controller") + ".kind", f"must be \"programme\" for a case with segments, "
+                         f"got {controller.kind!r}")
+    if controller.kind == "programme" and not segments:
+        raise InputError(w, kname("segment"), "a \"programme\" controller needs at least one [[segment]]")
+    if segments and has_initial and start_from is None:
+        _check_programme(w, kname("segment"), segments, initial.grasp)
+
+    compare = _compare(w, kname("compare"), raw.get("compare", {}))
+
     return Case(
         name=name, description=_text(w, "description", raw["description"]), duration=duration,
-        short_duration=short, initial=initial, orbit=orbit.get("enabled", False),
+        short_duration=duration, initial=initial, orbit=orbit_spec.enabled,
         controller=controller, releases=tuple(sorted(releases, key=lambda r: r.time)),
         capture=cap, solver=solver, n_modes=n_modes, params=params, path=where,
-        file_hash=digest, raw=raw,
+        file_hash=digest, raw=raw, orbit_spec=orbit_spec, segments=segments, compare=compare,
+        start_from=start_from, has_initial=has_initial, is_short=is_short,
     )
+
+
+def _controller(w: str, key: str, v: Any) -> ControllerSpec:
+    ctrl = _table(w, key, v, {
+        "kind": lambda k, x: _choice(w, k, x, ("none", "constant", "programme")),
+        "motor_torques": lambda k, x: _vector(w, k, x, 6),
+        "base_torque": lambda k, x: _number(w, k, x),
+        "feedback": lambda k, x: _choice(w, k, x, ("measured", "kinematic")),
+        "rate_filter_hz": lambda k, x: _number(w, k, x, 0.0),
+        "gains": lambda k, x: _text(w, k, x),
+        "base": lambda k, x: BaseGains(**_table(w, k, x, {
+            "kp": lambda kk, y: _number(w, kk, y, 0.0),
+            "kd": lambda kk, y: _number(w, kk, y, 0.0)})),
+        "arm1": lambda k, x: _arm_gains(w, k, x),
+        "arm2": lambda k, x: _arm_gains(w, k, x),
+    })
+    spec = ControllerSpec(**ctrl)
+    kind = spec.kind
+    if kind != "constant":
+        for k in ("motor_torques", "base_torque"):
+            if k in ctrl:
+                raise InputError(w, f"{key}.{k}", f"only for kind = \"constant\" (kind is {kind!r})")
+    if kind != "programme":
+        for k in ("feedback", "rate_filter_hz", "gains", "base", "arm1", "arm2"):
+            if k in ctrl:
+                raise InputError(w, f"{key}.{k}", f"only for kind = \"programme\" (kind is {kind!r})")
+    else:
+        for k in ("gains", "base", "arm1", "arm2"):
+            if k not in ctrl:
+                raise InputError(w, f"{key}.{k}", "missing (required for kind = \"programme\")")
+    return spec
+
+
+def _arm_gains(w: str, key: str, v: Any) -> ArmGains:
+    g = _table(w, key, v, {"kp": lambda k, x: _vector(w, k, x, 3, 0.0),
+                           "kd": lambda k, x: _vector(w, k, x, 3, 0.0)})
+    _require(w, key, g, ("kp", "kd"))
+    return ArmGains(**g)
+
+
+def _segments(w: str, key: str, v: Any, duration: float, point) -> tuple[Segment, ...]:
+    if not isinstance(v, list):
+        raise InputError(w, key, "must be an array of tables ([[segment]])")
+    out = []
+    names = set()
+    planned = 0.0
+    for n, item in enumerate(v):
+        sk = f"{key}[{n}]"
+        s = _table(w, sk, item, {
+            "name": lambda k, x: _text(w, k, x),
+            "duration": lambda k, x: _number(w, k, x, 0.0, lo_open=True),
+            "until": lambda k, x: _choice(w, k, x, ("capture",)),
+            "settle": lambda k, x: _number(w, k, x, 0.0),
+            "thrust": lambda k, x: _flag(w, k, x),
+            "base": lambda k, x: _choice(w, k, x, BASE_MODES),
+            "base_angle_deg": lambda k, x: _number(w, k, x),
+            "release": lambda k, x: _arms(w, k, x),
+            "capture": lambda k, x: x,
+            "arm1": lambda k, x: x,
+            "arm2": lambda k, x: x,
+            "target": lambda k, x: x,
+            "control_period": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=0.1),
+        })
+        _require(w, sk, s, ("name", "duration"))
+        if "control_period" in s and s["control_period"] > s["duration"]:
+            raise InputError(w, f"{sk}.control_period", f"{s['control_period']} s is longer than the "
+                             f"segment ({s['duration']} s)")
+        if s["name"] in names:
+            raise InputError(w, f"{sk}.name", f"'{s['name']}' is used by an earlier segment")
+        names.add(s["name"])
+        if "base_angle_deg" in s and s.get("base") != "angle":
+            raise InputError(w, f"{sk}.base_angle_deg", "only with base = \"angle\"")
+        cap = None
+        if "capture" in s:
+            c = _table(w, f"{sk}.capture", s["capture"], {
+                "arm": lambda k, x: _arm(w, k, x), "point": lambda k, x: x})
+            _require(w, f"{sk}.capture", c, ("arm",))
+            arm = c["arm"]
+            pt = point(f"{sk}.capture.point", c["point"], arm) if "point" in c else point(
+                f"{sk}.capture.point", f"grasp{arm}", arm)
+            cap = CaptureCommand(arm=arm, point_T=pt)
+        if s.get("until") == "capture" and cap is None:
+            raise InputError(w, f"{sk}.until", "\"capture\" needs a capture in this segment")
+        if "settle" in s and s.get("until") is None:
+            raise InputError(w, f"{sk}.settle", "only with until")
+        if s.get("settle", 0.0) >= s["duration"]:
+            raise InputError(w, f"{sk}.settle", f"{s['settle']} s is not shorter than the segment "
+                             f"({s['duration']} s)")
+        arms = []
+        for n_arm, a in enumerate(("arm1", "arm2")):
+            cmd = _arm_command(w, f"{sk}.{a}", s.get(a, {"mode": "hold"}), s["duration"], point)
+            if cmd.mode == "approach" and cmd.point_T is None:
+                if cap is None or cap.arm != n_arm + 1:
+                    raise InputError(w, f"{sk}.{a}.point", "missing (required for mode \"approach\" "
+                                     "unless the segment captures with this arm)")
+                cmd = replace(cmd, point_T=cap.point_T)
+            arms.append(cmd)
+        target = _target_command(w, f"{sk}.target", s["target"], s["duration"]) if "target" in s else None
+        carrying = [a.mode == "carry" for a in arms]
+        if target is not None and not any(carrying):
+            raise InputError(w, f"{sk}.target", "no arm is in mode \"carry\" to move the target")
+        if any(carrying) and target is None:
+            a = "arm1" if carrying[0] else "arm2"
+            raise InputError(w, f"{sk}.{a}.mode", "\"carry\" needs a target command in the segment")
+        planned += s["duration"]
+        seg = Segment(name=s["name"], duration=s["duration"], until=s.get("until", ""),
+                      settle=s.get("settle", 0.0), thrust=s.get("thrust", False),
+                      base=s.get("base", "hold"), base_angle_deg=s.get("base_angle_deg", 0.0),
+                      release=s.get("release", ()), capture=cap, arm1=arms[0], arm2=arms[1],
+                      target=target, control_period=s.get("control_period"))
+        out.append(seg)
+    if out and planned > duration * (1 + 1e-12):
+        raise InputError(w, key, f"segments last {planned:g} s, longer than the case ({duration:g} s)")
+    return tuple(out)
+
+
+def _arm_command(w: str, key: str, v: Any, seg_duration: float, point) -> ArmCommand:
+    c = _table(w, key, v, {
+        "mode": lambda k, x: _choice(w, k, x, ARM_MODES),
+        "to": lambda k, x: _vector(w, k, x, 3),
+        "time": lambda k, x: _number(w, k, x, 0.0, lo_open=True),
+        "point": lambda k, x: x,
+        "phi_deg": lambda k, x: _number(w, k, x),
+        "torques": lambda k, x: _vector(w, k, x, 3),
+    })
+    _require(w, key, c, ("mode",))
+    mode = c["mode"]
+    allowed = {"hold": (), "freeze": (), "off": (), "carry": (), "move": ("to", "time"),
+               "approach": ("point", "phi_deg", "time"), "torque": ("torques",)}[mode]
+    for k in c:
+        if k != "mode" and k not in allowed:
+            raise InputError(w, f"{key}.{k}", f"not used by mode {mode!r}")
+    if mode == "move" and "to" not in c:
+        raise InputError(w, f"{key}.to", "missing (required for mode \"move\")")
+    if mode == "torque" and "torques" not in c:
+        raise InputError(w, f"{key}.torques", "missing (required for mode \"torque\")")
+    if c.get("time", 0.0) > seg_duration * (1 + 1e-12):
+        raise InputError(w, f"{key}.time", f"{c['time']} s exceeds the segment ({seg_duration} s)")
+    return ArmCommand(mode=mode, to=c.get("to"), time=c.get("time"),
+                      point_T=point(f"{key}.point", c["point"], None) if "point" in c else None,
+                      phi_deg=c.get("phi_deg"), torques=c.get("torques", (0.0, 0.0, 0.0)))
+
+
+def _target_command(w: str, key: str, v: Any, seg_duration: float) -> TargetCommand:
+    c = _table(w, key, v, {
+        "mode": lambda k, x: _choice(w, k, x, TARGET_MODES),
+        "to": lambda k, x: _vector(w, k, x, 3),
+        "by": lambda k, x: _vector(w, k, x, 2),
+        "time": lambda k, x: _number(w, k, x, 0.0, lo_open=True),
+        "tolerance": lambda k, x: _number(w, k, x, 0.0, lo_open=True),
+        "step_time": lambda k, x: _number(w, k, x, 0.0, lo_open=True),
+        "settle_time": lambda k, x: _number(w, k, x, 0.0),
+        "max_iterations": lambda k, x: _integer(w, k, x, 1, 100),
+    })
+    _require(w, key, c, ("mode",))
+    mode = c["mode"]
+    allowed = {"move": ("to", "time"), "push": ("by", "time"),
+               "com_align": ("tolerance", "step_time", "settle_time", "max_iterations")}[mode]
+    for k in c:
+        if k != "mode" and k not in allowed:
+            raise InputError(w, f"{key}.{k}", f"not used by mode {mode!r}")
+    if mode == "move" and "to" not in c:
+        raise InputError(w, f"{key}.to", "missing (required for mode \"move\")")
+    if mode == "push" and "by" not in c:
+        raise InputError(w, f"{key}.by", "missing (required for mode \"push\")")
+    if mode != "push" and c.get("time", 0.0) > seg_duration * (1 + 1e-12):
+        # (a push may outlast its segment: the target is released while it moves)
+        raise InputError(w, f"{key}.time", f"{c['time']} s exceeds the segment ({seg_duration} s)")
+    if mode == "com_align" and c.get("step_time", 20.0) + c.get("settle_time", 10.0) > seg_duration:
+        raise InputError(w, f"{key}.step_time", "one iteration (step_time + settle_time) does not fit "
+                         f"in the segment ({seg_duration} s)")
+    c.pop("mode")
+    return TargetCommand(mode=mode, **c)
+
+
+def _check_programme(w: str, key: str, segments: tuple[Segment, ...], grasp: tuple[int, int]) -> None:
+    """Walk the planned grasp states through the segments (captures assumed to succeed)."""
+    held = list(grasp)
+    for n, seg in enumerate(segments):
+        sk = f"{key}[{n}]"
+        for arm in seg.release:
+            if not held[arm - 1]:
+                raise InputError(w, f"{sk}.release", f"arm {arm} does not hold the target at the "
+                                 f"start of segment '{seg.name}'")
+            held[arm - 1] = 0
+        if seg.capture is not None:
+            if held[seg.capture.arm - 1]:
+                raise InputError(w, f"{sk}.capture.arm", f"arm {seg.capture.arm} already holds the "
+                                 f"target in segment '{seg.name}'")
+            if not any(held):
+                raise InputError(w, f"{sk}.capture.arm", "nothing holds the target to capture it from "
+                                 f"in segment '{seg.name}'")
+        for a, cmd in ((1, seg.arm1), (2, seg.arm2)):
+            if cmd.mode == "carry" and not held[a - 1]:
+                raise InputError(w, f"{sk}.arm{a}.mode", f"arm {a} cannot carry the target: it does "
+                                 f"not hold it in segment '{seg.name}'")
+            if cmd.mode == "approach" and held[a - 1]:
+                raise InputError(w, f"{sk}.arm{a}.mode", f"arm {a} already holds the target in "
+                                 f"segment '{seg.name}'")
+        if seg.target is not None:
+            for a, cmd in ((1, seg.arm1), (2, seg.arm2)):
+                if held[a - 1] and cmd.mode != "carry":
+                    raise InputError(w, f"{sk}.arm{a}.mode", f"arm {a} holds the target while the "
+                                     f"target moves: it must be \"carry\", got {cmd.mode!r}")
+        if seg.capture is not None:
+            held[seg.capture.arm - 1] = 1
+
+
+def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
+    if not isinstance(v, Mapping):
+        raise InputError(w, key, "must be a table of observable tables")
+    out = []
+    for obs, item in v.items():
+        k = f"{key}.{obs}"
+        if obs not in OBSERVABLE_NAMES or obs == "time":
+            raise InputError(w, k, "not an observable of SPEC §4 (see rsmcheck.observables)")
+        c = _table(w, k, item, {
+            "tolerance": lambda kk, x: _number(w, kk, x, 0.0, lo_open=True),
+            "why": lambda kk, x: _text(w, kk, x),
+            "metric": lambda kk, x: _choice(w, kk, x, METRICS),
+        })
+        _require(w, k, c, ("tolerance", "why"))
+        out.append(CompareSpec(observable=obs, **c))
+    return tuple(out)
 
 
 def _grasp(where: str, key: str, v: Any) -> tuple[int, int]:
     if not isinstance(v, list) or len(v) != 2 or any(isinstance(x, bool) or x not in (0, 1) for x in v):
         raise InputError(where, key, "must be a list of two 0/1 values")
     return (int(v[0]), int(v[1]))
+
+
+def _arms(where: str, key: str, v: Any) -> tuple[int, ...]:
+    if not isinstance(v, list) or not v or len(set(map(repr, v))) != len(v):
+        raise InputError(where, key, "must be a non-empty list of distinct arms (1, 2)")
+    return tuple(_arm(where, f"{key}[{i}]", x) for i, x in enumerate(v))
+
+
+def _held_points(where: str, key: str, v: Any, point) -> tuple[tuple[float, float], tuple[float, float]]:
+    if not isinstance(v, list) or len(v) != 2:
+        raise InputError(where, key, "must be a list of two points [[x, y], [x, y]]")
+    return (point(f"{key}[0]", v[0], 1), point(f"{key}[1]", v[1], 2))
 
 
 def _choice(where: str, key: str, v: Any, options: tuple[str, ...]) -> str:

@@ -38,6 +38,8 @@ instead.  No Python user function runs inside a Newton iteration.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 import sys
 import threading
@@ -47,7 +49,9 @@ from dataclasses import dataclass, field as dc_field
 import numpy as np
 
 sys.exudynFast = True  # noqa: E402
-import exudyn as exu  # noqa: E402
+# exudyn announces the fast build on stdout: keep it out of `--json` output
+with contextlib.redirect_stdout(io.StringIO()):
+    import exudyn as exu  # noqa: E402
 from exudyn.itemInterface import (  # noqa: E402
     CoordinateConstraint, LoadCoordinate, LoadForceVector, LoadTorqueVector,
     MarkerBodyPosition, MarkerBodyRigid, MarkerNodeCoordinate, MarkerNodePosition,
@@ -76,6 +80,12 @@ NEWTON_RTOL_DEFAULT = 1e-8
 #: acceleration error of 3e-6 m/s² for one step.  Rigid links have no such floor.
 NEWTON_ATOL_FLEXIBLE = 1e-4
 NEWTON_ATOL_RIGID = 1e-10
+#: restart generalized-α when a held input jumps by more than this fraction of its limit:
+#: a jump carried by the algorithmic acceleration leaves an O(h) error; below the threshold
+#: (the sample-to-sample changes of a feedback controller) it is left to the integrator,
+#: which makes controlled cases converge at first order in h (docs/exudyn.md §6);
+#: 0 restarts at every change (second order again, one factorisation per period)
+RESTART_THRESHOLD_DEFAULT = 0.01
 N_GAUSS_FIELD = 4  # Gauss points per element for the tidal field, energy and momentum
 
 
@@ -121,6 +131,12 @@ class ExudynEngine:
       spectral_radius ρ∞ of generalized-α
       newton_rtol     relative Newton tolerance
       field           build the field/thrust machinery (default: when the case has an orbit)
+      stepping        "continuous" (one SolveSteps across control periods) or "period"
+      constraints     "index3": generalized-α with position-level constraints (default);
+                      "index2": Newmark/trapezoidal with velocity-level constraints, whose
+                      multipliers (reaction forces) have a round-off floor ∝ 1/h, not 1/h²
+      axial_damping   factor on the axial Kelvin–Voigt damping η·EA of the links (default 1)
+      restart_threshold  input jump (fraction of its limit) that restarts the integrator
     """
 
     name = "exudyn"
@@ -130,7 +146,8 @@ class ExudynEngine:
                  spectral_radius: float = SPECTRAL_RADIUS_DEFAULT, newton_rtol: float = NEWTON_RTOL_DEFAULT,
                  newton_atol: float | None = None,
                  field: bool | None = None, restart_on_input_change: bool = True,
-                 stepping: str = "continuous"):
+                 stepping: str = "continuous", constraints: str = "index3", axial_damping: float = 1.0,
+                 restart_threshold: float = RESTART_THRESHOLD_DEFAULT):
         self.case = case
         self.params = params or case.params
         self.rigid = bool(rigid)
@@ -143,9 +160,14 @@ class ExudynEngine:
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)
+        self.restart_threshold = float(restart_threshold)
         if stepping not in ("continuous", "period"):
             raise ValueError(f"stepping must be 'continuous' or 'period', got {stepping!r}")
         self.stepping = stepping
+        if constraints not in ("index3", "index2"):
+            raise ValueError(f"constraints must be 'index3' or 'index2', got {constraints!r}")
+        self.constraints = constraints
+        self.axial_damping = float(axial_damping)
         self.dt = case.solver.control_period
         p = self.params
         self.mesh = links.LinkMesh(self.n_elements, p.link.length, p.link.rho_a)
@@ -287,7 +309,8 @@ class ExudynEngine:
     def _flexible_link(self, i, pin, th, vel, om, terminal, basis) -> LinkItems:
         mbs, p = self.mbs, self.params
         L, m = p.link.length, p.link.mass
-        nodes, elements = links.add_link(mbs, p.link, self.n_elements, pin, th, vel, om)
+        nodes, elements = links.add_link(mbs, p.link, self.n_elements, pin, th, vel, om,
+                                         axial_damping=self.axial_damping)
         # frame body: massless, J_extra, origin at the proximal pin
         nf = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*pin, th], initialVelocities=[*vel, om]))
         bf = mbs.AddObject(ObjectRigidBody2D(nodeNumber=nf, mass=0.0, inertia=p.link.inertia_extra))
@@ -354,6 +377,11 @@ class ExudynEngine:
         ti.numberOfSteps = self.substeps
         ti.generalizedAlpha.spectralRadius = self.spectral_radius
         ti.generalizedAlpha.computeInitialAccelerations = True
+        if self.constraints == "index2":
+            # Newmark (trapezoidal: β = 1/4, γ = 1/2, no numerical damping) with velocity-level
+            # constraints: the multipliers scale as 1/h instead of 1/h² (docs/exudyn.md §6)
+            ti.generalizedAlpha.useNewmark = True
+            ti.generalizedAlpha.useIndex2Constraints = True
         ti.newton.relativeTolerance = self.newton_rtol
         ti.newton.absoluteTolerance = self.newton_atol
         ti.newton.useModifiedNewton = True
@@ -491,13 +519,25 @@ class ExudynEngine:
                 self._restart()
             self._held = held
         solver = self.solver
-        if self._worker is not None:
+        # the runner may advance by other intervals than the case's control period (a
+        # segment's own control_period, an interval clipped at a segment boundary): the step
+        # stays h = control_period/substeps; an interval that is not a whole number of steps
+        # is done on its own with equal steps ≤ h
+        h = self.dt / self.substeps
+        span = t_next - self.t
+        n = span / h
+        whole = round(n) >= 1 and abs(n - round(n)) < 1e-6
+        n_steps = int(round(n)) if whole else max(1, math.ceil(n - 1e-6))
+        if self._worker is not None and whole:
             ok = self._worker.step(self.t, t_next)
         else:
+            self._pause()
             solver.it.startTime = self.t
             solver.it.endTime = t_next
+            solver.it.currentStepSize = span / n_steps
+            solver.it.adaptiveStep = True  # (the worker turns it off) lets the last step land on t_next
             ok = solver.SolveSteps(mbs, self.settings)
-        self.stats["steps"] += self.substeps
+        self.stats["steps"] += n_steps
         self.stats["newton_iterations"] = int(solver.it.newtonStepsCount)
         self.stats["jacobians"] = int(solver.it.newtonJacobiCount)
         q, v = self._qv()
@@ -513,11 +553,13 @@ class ExudynEngine:
         self.t = t_next
 
     def _is_step(self, held) -> bool:
-        """True when the inputs jump by more than 1 % of their limits (or thrust switches)."""
+        """True when the inputs jump by more than `restart_threshold` of their limits (or
+        thrust switches); threshold 0: at every change."""
         a = self.params.actuators
+        f = self.restart_threshold
         old = self._held or ((0.0,) * 6, 0.0, 0.0)
-        return (np.max(np.abs(np.subtract(held[0], old[0]))) > 0.01 * self.params.motor.torque_max
-                or abs(held[1] - old[1]) > 0.01 * a.torque_max or abs(held[2] - old[2]) > 0.01 * a.thrust)
+        return (np.max(np.abs(np.subtract(held[0], old[0]))) > f * self.params.motor.torque_max
+                or abs(held[1] - old[1]) > f * a.torque_max or abs(held[2] - old[2]) > f * a.thrust)
 
     def _advance_orbit(self, h: float, a_thr: np.ndarray) -> None:
         if not self.orbit and not np.any(a_thr):
@@ -653,12 +695,18 @@ class ExudynEngine:
         settings.staticSolver.verboseMode = 0
         settings.linearSolver.solverType = exu.LinearSolverType.EXUdense
         solver.InitializeSolver(mbs, settings)
+        n2 = solver.GetODE2size()
+        n_all = n2 + solver.GetODE1size() + solver.GetAEsize()
+        # ComputeJacobianAE *adds* into the solver's system Jacobian, which InitializeSolver
+        # does not clear: start from zeros (else stale memory, seen as NaN entries)
         solver.ComputeMassMatrix(mbs)
         M = np.asarray(solver.GetSystemMassMatrix())
+        solver.SetSystemJacobian(np.zeros((n_all, n_all)))
         solver.ComputeJacobianAE(mbs, scalarFactor_ODE2=1.0, scalarFactor_ODE2_t=0.0,
                                  scalarFactor_ODE1=0.0, velocityLevel=False)
         J = np.asarray(solver.GetSystemJacobian())
-        n2 = solver.GetODE2size()
+        if not (np.all(np.isfinite(M)) and np.all(np.isfinite(J))):
+            raise SimulationDiverged(self.name, self.t, "?", "mass matrix / constraint Jacobian at capture", float("nan"))
         G = J[n2 + solver.GetODE1size():, :n2]
         G = G[np.any(G != 0.0, axis=1)]
         v = np.asarray(mbs.systemData.GetODE2Coordinates_t())
@@ -795,7 +843,9 @@ class ExudynEngine:
                 "links": "rigid bodies" if self.rigid else f"ANCFCable2D x {self.n_elements}",
                 "steps": self.stats["steps"], "newton_iterations": self.stats["newton_iterations"],
                 "jacobians": self.stats["jacobians"], "restarts": self.stats["restarts"],
-                "stepping": self.stepping}
+                "stepping": self.stepping, "constraints": self.constraints,
+                "axial_damping": self.axial_damping,
+                "restart_threshold": self.restart_threshold}
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "exudyn", "numpy")
@@ -819,6 +869,9 @@ class _Worker:
         # no reference to the engine itself (the paused thread would keep it alive): the
         # engine's finalizer stops the thread when the engine is dropped
         self.mbs, self.solver, self.settings, self.dt = engine.mbs, engine.solver, engine.settings, engine.dt
+        self.h = engine.dt / engine.substeps
+        self.tol = 1e-6 * self.h
+        self.target = math.inf  # pause at the end of the step that reaches this time
         self.go = threading.Event()
         self.arrived = threading.Event()
         self.command = "continue"
@@ -830,9 +883,8 @@ class _Worker:
     def _post_step(self, mbs, t: float) -> bool:
         if self.thread is None or threading.current_thread() is not self.thread or t <= self.t_start + 1e-12:
             return True
-        k = t / self.dt
-        if abs(k - round(k)) > 1e-6:
-            return True  # a sub-step inside the control period
+        if t < self.target - self.tol:
+            return True  # a step inside the interval
         self.arrived.set()
         self.go.wait()
         self.go.clear()
@@ -849,12 +901,15 @@ class _Worker:
             self.arrived.set()
 
     def step(self, t: float, t_next: float) -> bool:
-        """Integrate from t to t_next (the next control sample); False on failure."""
+        """Integrate from t to t_next (the next control sample, a whole number of steps h
+        on); False on failure."""
+        self.target = t_next
         if self.thread is None or not self.thread.is_alive():
             solver = self.solver
             solver.it.startTime = t
             solver.it.endTime = 1e30
             solver.it.adaptiveStep = False
+            solver.it.currentStepSize = self.h
             self.t_start = t
             self.ok = True
             self.arrived.clear()
@@ -870,7 +925,7 @@ class _Worker:
             self.thread.join()
             self.thread = None
             return False
-        return abs(self.mbs.systemData.GetTime() - t_next) < 1e-9 * max(1.0, t_next)
+        return abs(self.mbs.systemData.GetTime() - t_next) < max(self.tol, 1e-9 * max(1.0, t_next))
 
     def stop(self) -> None:
         if self.thread is not None and self.thread.is_alive():

@@ -24,13 +24,17 @@ pinned-pinned (PP) or pinned-free (PF) from Exudyn's own mass and stiffness matr
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 import sys
 
 import numpy as np
 
 sys.exudynFast = True  # noqa: E402  (ENGINE-NOTES: the fast build, no range checks)
-import exudyn as exu  # noqa: E402
+# exudyn announces the fast build on stdout: keep it out of `--json` output
+with contextlib.redirect_stdout(io.StringIO()):
+    import exudyn as exu  # noqa: E402
 from exudyn.itemInterface import NodePoint2DSlope1, ObjectANCFCable2D  # noqa: E402
 
 from rsmcheck.params import LinkParams, Params  # noqa: E402
@@ -158,22 +162,28 @@ class LinkMesh:
 
 
 # --- building a link in a system ---------------------------------------------------------
-def material(link: LinkParams) -> dict[str, float]:
-    """ObjectANCFCable2D material parameters from the one parameter source."""
+def material(link: LinkParams, axial_damping: float = 1.0) -> dict[str, float]:
+    """ObjectANCFCable2D material parameters from the one parameter source.
+
+    `axial_damping` scales the axial Kelvin–Voigt term η·EA (1: the same material law as
+    in bending).  The axially rigid reference has neither the axial compliance nor this
+    dissipation, P = η Ṅ² L / EA per link, which vanishes only as EA → ∞; at EA = 1e4·EI it
+    is enough to damp the marginally unstable rotor mode of p1_rigid_gains (docs/exudyn.md §8).
+    """
     ei = link.ei
     ea = link.axial_to_bending * ei
     eta = link.kelvin_voigt_eta
     return {"massPerLength": link.rho_a, "bendingStiffness": ei, "axialStiffness": ea,
-            "bendingDamping": eta * ei, "axialDamping": eta * ea}
+            "bendingDamping": eta * ei, "axialDamping": axial_damping * eta * ea}
 
 
 def add_link(mbs, link: LinkParams, n_elements: int, pin, theta: float, pin_vel=(0.0, 0.0),
-             omega: float = 0.0, damping: bool = True) -> tuple[list[int], list[int]]:
+             omega: float = 0.0, damping: bool = True, axial_damping: float = 1.0) -> tuple[list[int], list[int]]:
     """A straight, unstretched link from `pin` at angle `theta`, moving rigidly with the
     pin velocity and angular rate `omega`.  Returns (node numbers, element numbers)."""
     le = link.length / n_elements
     c, s = math.cos(theta), math.sin(theta)
-    mat = material(link)
+    mat = material(link, axial_damping)
     if not damping:
         mat["bendingDamping"] = mat["axialDamping"] = 0.0
     nodes = []

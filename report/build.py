@@ -1,8 +1,11 @@
 """`rsmcheck report`: run the cases, write the run files and one self-contained HTML page.
 
 The page has, per case: what the case isolates, the run statistics of every engine, the
-event log, conservation drifts, and the observables against time with every engine
-overlaid; at the top, the Pinocchio rigid checks.  Everything is embedded (PNG as base64),
+event log, conservation drifts, the engine comparison by the case's [compare] table
+(observable, metric, error, tolerance, margin, result, why — the rows of `rsmcheck check`,
+when both engines ran), and the observables against time with every engine overlaid; at
+the top, the Pinocchio rigid checks, the eigenfrequencies of `rsmcheck modes` (with
+Exudyn) and the stored engine studies (docs/data/*.json from `rsmcheck.studies`).  Everything is embedded (PNG as base64),
 so the file can be mailed or archived alone.  It is written to a temporary name and
 renamed when complete.
 """
@@ -67,6 +70,108 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], left: int = 1) 
     return f"<table><tr>{th}</tr>{body}</table>"
 
 
+def _fmt(x: float) -> str:
+    if x != x:
+        return "–"
+    if x == float("inf"):
+        return "∞"
+    return f"{x:.3g}" if 0.01 <= abs(x) < 1e4 else f"{x:.2e}"
+
+
+def _compare_html(case: Case, runs: dict[str, EngineRun], short: bool) -> str:
+    """The engine comparison of one case: its [compare] table applied to the runs."""
+    from rsmcheck.compare import check_runs
+
+    variant = case.variant(short)
+    if not variant.compare:
+        return ("<p><b>Engine comparison:</b> the case file has no [compare] table: "
+                "nothing is compared for this case.</p>")
+    if "reference" not in runs or "exudyn" not in runs:
+        return ("<p><b>Engine comparison:</b> needs both engines (<code>--engine all</code>); "
+                f"this report ran {', '.join(runs)}.</p>")
+    rows = []
+    for r in check_runs(variant, runs["reference"], runs["exudyn"]):
+        rows.append([html.escape(r.observable), r.metric, f"{r.error:.3e}", f"{r.tolerance:.3e}", _fmt(r.margin),
+                     "<span class='pass'>pass</span>" if r.passed else "<span class='fail'>FAIL</span>",
+                     f"{r.reference_range:.3e}", f"<span class='small'>{html.escape(r.why)}</span>"])
+    return ("<p><b>Engine comparison</b> (reference vs Exudyn, the case's [compare] table; error in the "
+            "observable's unit, margin = tolerance / error)</p>"
+            + _table(["observable", "metric", "error", "tolerance", "margin", "result", "reference range", "why"],
+                     rows, left=2).replace("<td>" + "<span class='small'>", "<td class='l'><span class='small'>"))
+
+
+def _modes_html() -> str:
+    """`rsmcheck modes`: link frequencies and coupled frequencies, reference vs Exudyn."""
+    try:
+        from rsmcheck.modes import arm_rows, link_rows
+
+        links, arms = link_rows(), arm_rows()
+    except Exception as exc:  # noqa: BLE001 — the report shows why instead of failing
+        return f"<h2 id='modes'>Eigenfrequencies</h2><p class='fail'>not computed: {html.escape(str(exc))}</p>"
+    lrows = [[r["basis"], str(r["mode"]), f"{r['table2_hz']:.2f}", f"{r['analytic_hz']:.4f}", f"{r['reference_hz']:.4f}",
+              f"{r['exudyn_hz']:.4f}", f"{100 * r['reference_rel']:+.4f} %", f"{100 * r['exudyn_rel']:+.4f} %"]
+             for r in links]
+    arows = [[html.escape(r["configuration"]), html.escape(r["case"]), str(r["mode"]), f"{r['reference_hz']:.4f}",
+              f"{r['exudyn_hz']:.4f}", f"{100 * r['rel_difference']:+.4f} %"] for r in arms]
+    return ("<h2 id='modes'>Eigenfrequencies (rsmcheck modes)</h2>"
+            f"<p>One link, pinned-pinned (PP) and pinned-free (PF): Euler–Bernoulli from Table 2, the "
+            f"reference's modal K, M, and Exudyn with {links[0]['exudyn_elements']} ANCF elements.</p>"
+            + _table(["basis", "mode", "Table 2 [Hz]", "analytic", "reference", "Exudyn", "ref − analytic",
+                      "Exudyn − analytic"], lrows, left=1)
+            + "<p>The robot linearised at rest in a case's initial configuration, undamped [Hz] (reference: the "
+              "case's modes per link; the known differences are modal truncation and the axial compliance of "
+              "the FE links, docs/exudyn.md §3).</p>"
+            + _table(["configuration", "case", "mode", "reference", "Exudyn", "difference"], arows, left=2))
+
+
+DATA_DIR = Path(__file__).resolve().parent.parent / "docs" / "data"
+
+
+def _studies_html(data_dir: Path = DATA_DIR) -> str:
+    """The stored engine studies (rsmcheck.studies → docs/data/*.json), if present."""
+    parts = []
+    for path in sorted(data_dir.glob("rigid_steps_*.json")):
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        opts = doc.get("exudyn_options", {})
+        parts.append(f"<h3>Rigid equivalence vs step ({html.escape(path.name)}, Exudyn {html.escape(str(opts))}, "
+                     f"reference rtol {doc.get('reference_rtol')})</h3><p class='small'>{html.escape(doc.get('metric', ''))}"
+                     "; worst observable per case and step, and the reaction forces</p>")
+        rows = []
+        for name, entry in doc.get("cases", {}).items():
+            for st in entry.get("steps", []):
+                errs = {k: v for k, v in st["errors"].items() if k != "link_deflection"}
+                worst = max(errs, key=errs.get)
+                others = {k: v for k, v in errs.items() if k != "reaction_forces_I"}
+                w2 = max(others, key=others.get)
+                rows.append([html.escape(name), str(st["substeps"]), f"{st['h'] * 1e3:.4g}", f"{st['wall_s']:.1f}",
+                             f"{worst} {errs[worst]:.2e}", f"{w2} {others[w2]:.2e}",
+                             f"{errs.get('reaction_forces_I', float('nan')):.2e}"])
+        parts.append(_table(["case", "substeps", "h [ms]", "wall [s]", "worst", "worst except reaction",
+                             "reaction"], rows, left=1))
+    for path in sorted(data_dir.glob("convergence_*.json")):
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        modes, elements = doc.get("modes", []), doc.get("elements", [])
+        for obs in ("link_deflection", "joint_angles", "ee2_pos_B", "energy"):
+            rows = []
+            for n in modes:
+                rows.append([str(n)] + [f"{doc['errors'].get(f'{n},{m}', {}).get(obs, float('nan')):.2e}"
+                                        for m in elements])
+            parts.append(f"<h3>Flexible convergence, {html.escape(doc.get('case', ''))} ({doc.get('duration')} s, "
+                         f"h = {doc.get('h', 0) * 1e3:.3g} ms): {obs}</h3>"
+                         + _table(["reference modes ↓ / Exudyn elements →"] + [str(m) for m in elements], rows))
+    if not parts:
+        return ""
+    return ("<h2 id='studies'>Engine studies (stored results, docs/data)</h2><p>From "
+            "<code>python -m rsmcheck.studies</code>; relative differences (rsmcheck.compare.compare_runs).</p>"
+            + "".join(parts))
+
+
 def _case_section(case: Case, runs: dict[str, EngineRun], short: bool) -> str:
     parts = [f"<h2 id='{case.name}'>{html.escape(case.name)}</h2>",
              f"<p>{html.escape(case.description)}</p>",
@@ -86,6 +191,7 @@ def _case_section(case: Case, runs: dict[str, EngineRun], short: bool) -> str:
               for name, r in runs.items() for ev in r.events]
     if events:
         parts.append(_table(["engine", "t [s]", "event", "detail"], events, left=1))
+    parts.append(_compare_html(case, runs, short))
     parts.append(f"<img alt='conservation {case.name}' src='data:image/png;base64,{conservation_figure(runs)}'>")
     parts.append(f"<img alt='observables {case.name}' src='data:image/png;base64,{case_figure(runs)}'>")
     return "\n".join(parts)
@@ -123,8 +229,14 @@ def build_report(out: Path, engines: Sequence[str], short: bool, case_names: Seq
     pin_html = ("<h2>Pinocchio: rigid kinematics and dynamics</h2><p>Reference vs Pinocchio at seeded "
                 "random states, norm-relative error.</p>"
                 + _table(["quantity", "chain", "holding", "modes", "states", "max error", "tolerance", "result"], pin_rows))
+    modes_html = _modes_html() if "exudyn" in engines else ""
+    studies_html = _studies_html()
+    extra = [(a, t) for a, t, h in (("modes", "eigenfrequencies", modes_html), ("studies", "engine studies", studies_html)) if h]
+    if extra:
+        toc = toc.replace("<p>", "<p>" + " · ".join(f"<a href='#{a}'>{t}</a>" for a, t in extra) + " · ", 1)
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>rsmcheck report</title>"
-            f"<style>{CSS}</style></head><body>{head}{toc}{pin_html}{''.join(sections)}</body></html>")
+            f"<style>{CSS}</style></head><body>{head}{toc}{pin_html}{modes_html}{studies_html}"
+            f"{''.join(sections)}</body></html>")
     tmp = out.with_name(out.name + ".tmp")
     try:
         tmp.write_text(page, encoding="utf-8")

@@ -81,6 +81,114 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _engine_options(pairs: Sequence[str] | None, engine: str) -> dict:
+    """KEY=VALUE options of one engine's constructor (ints, floats, true/false, text)."""
+    import inspect
+
+    if engine == "reference":
+        from reference_model.engine import ReferenceEngine as cls
+    else:
+        from exudyn_model.engine import ExudynEngine as cls
+    allowed = [k for k in inspect.signature(cls.__init__).parameters if k not in ("self", "case", "params")]
+    out: dict = {}
+    for item in pairs or ():
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise InputError(f"--{engine}", item, "must be KEY=VALUE")
+        if key not in allowed:
+            raise InputError(f"--{engine}", key, f"unknown option (known: {', '.join(allowed)})")
+        value: object = text
+        low = text.lower()
+        if low in ("true", "false"):
+            value = low == "true"
+        else:
+            for conv in (int, float):
+                try:
+                    value = conv(text)
+                    break
+                except ValueError:
+                    pass
+        out[key] = value
+    return out
+
+
+def _fmt(x: float) -> str:
+    return "inf" if x == float("inf") else f"{x:.3g}" if x >= 0.01 else f"{x:.2e}"
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    import json
+
+    from cases.loader import load_case
+    from rsmcheck.compare import check_case
+    from rsmcheck.store import write_run
+
+    cases = [load_case(name) for name in args.case]  # validate every case before running any
+    options = {"reference": _engine_options(args.reference, "reference"),
+               "exudyn": _engine_options(args.exudyn, "exudyn")}
+    results = []
+    for case in cases:
+        res = check_case(case, args.short, options, parallel=not args.serial)
+        results.append(res)
+        if args.out and res.runs:
+            out = Path(args.out)
+            out.mkdir(parents=True, exist_ok=True)
+            write_run(out / f"{case.name}.h5", res.runs, case_name=case.name, case_hash=case.file_hash,
+                      param_hash=case.params.digest(), extra_attrs={"short": bool(args.short)})
+        if args.json:
+            continue
+        if res.skipped:
+            print(f"{case.name}: NOT CHECKED: {res.skipped}")
+            continue
+        variant = "short" if args.short and case.short is not None else "full"
+        print(f"{case.name} ({variant}, {res.duration:g} s; wall: reference {res.wall_s['reference']:.1f} s, "
+              f"exudyn {res.wall_s['exudyn']:.1f} s)")
+        print(f"  {'observable':20s} {'metric':8s} {'error':>10s} {'tolerance':>10s} {'margin':>8s}  result")
+        for r in res.rows:
+            print(f"  {r.observable:20s} {r.metric:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
+                  + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
+    rows = [r for res in results for r in res.rows]
+    skipped = [{"case": res.case, "reason": res.skipped} for res in results if res.skipped]
+    failed = [r for r in rows if not r.passed]
+    if args.json:
+        doc = {"checks": [r.as_dict() for r in rows], "skipped": skipped,
+               "runs": [{"case": res.case, "duration_s": res.duration, "wall_s": res.wall_s}
+                        for res in results if not res.skipped],
+               "options": options, "short": bool(args.short)}
+        print(json.dumps(doc, indent=1))
+    else:
+        print(f"{len(rows) - len(failed)} of {len(rows)} comparisons pass"
+              + (f"; {len(skipped)} case(s) not checked (no [compare] table)" if skipped else ""))
+    if not rows:
+        sys.stderr.write("rsmcheck: nothing was compared (no case has a [compare] table)\n")
+        return 1
+    return 1 if failed else 0
+
+
+def _cmd_modes(args: argparse.Namespace) -> int:
+    import json
+
+    from rsmcheck.modes import arm_rows, link_rows
+
+    links = link_rows(n_elements=args.elements)
+    arms = arm_rows(n_modes=args.modes, n_elements=args.elements)
+    if args.json:
+        print(json.dumps({"links": links, "arms": arms}, indent=1))
+        return 0
+    print(f"Link eigenfrequencies [Hz] (Exudyn: {links[0]['exudyn_elements']} ANCF elements per link)")
+    print(f"  {'basis':5s} {'mode':>4s} {'Table 2':>9s} {'analytic':>10s} {'reference':>10s} {'Exudyn':>10s}"
+          f" {'ref-an':>9s} {'exu-an':>9s}")
+    for r in links:
+        print(f"  {r['basis']:5s} {r['mode']:4d} {r['table2_hz']:9.2f} {r['analytic_hz']:10.4f} {r['reference_hz']:10.4f}"
+              f" {r['exudyn_hz']:10.4f} {100 * r['reference_rel']:+8.4f}% {100 * r['exudyn_rel']:+8.4f}%")
+    print("Coupled frequencies of the robot at rest, undamped [Hz]")
+    print(f"  {'configuration':17s} {'mode':>4s} {'reference':>10s} {'Exudyn':>10s} {'difference':>11s}")
+    for r in arms:
+        print(f"  {r['configuration']:17s} {r['mode']:4d} {r['reference_hz']:10.4f} {r['exudyn_hz']:10.4f}"
+              f" {100 * r['rel_difference']:+10.4f}%")
+    return 0
+
+
 def _cmd_pinocchio(args: argparse.Namespace) -> int:
     from pinocchio_check.compare import main
 
@@ -96,6 +204,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "bench": _cmd_bench,
     "cases": _cmd_cases,
+    "check": _cmd_check,
+    "modes": _cmd_modes,
     "run": _cmd_run,
     "pinocchio": _cmd_pinocchio,
     "report": _cmd_report,
@@ -111,6 +221,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
+    p = sub.add_parser("check", help="run the reference and Exudyn, compare by the case's [compare] table")
+    p.add_argument("case", nargs="+", help="case name (cases/NAME.toml) or path to a case file")
+    p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
+    p.add_argument("--json", action="store_true", help="one JSON object {\"checks\": [...]} on stdout")
+    p.add_argument("--reference", action="append", metavar="KEY=VALUE",
+                   help="reference engine option, e.g. n_modes=4 (repeatable)")
+    p.add_argument("--exudyn", action="append", metavar="KEY=VALUE",
+                   help="Exudyn engine option, e.g. substeps=8, n_elements=12 (repeatable)")
+    p.add_argument("--out", help="also write DIR/CASE.h5 with both runs")
+    p.add_argument("--serial", action="store_true", help="run the engines one after the other (default: 2 processes)")
+    p = sub.add_parser("modes", help="link and arm eigenfrequencies: analytic, reference, Exudyn")
+    p.add_argument("--json", action="store_true", help="one JSON object {\"links\": [...], \"arms\": [...]}")
+    p.add_argument("--modes", type=int, help="reference modes per link for the arms (default: each case's)")
+    p.add_argument("--elements", type=int, help="Exudyn ANCF elements per link (default 8)")
     p = sub.add_parser("report", help="run the cases and write a self-contained HTML report")
     p.add_argument("--out", default="out/report.html", help="HTML file (run files go to its folder/runs)")
     p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])

@@ -1,26 +1,43 @@
 """Comparison of two engines' runs of the same case, observable by observable.
 
 Both engines are driven by the same sampled-data loop, so their samples fall on the same
-times; the comparison is sample by sample:
+times; every comparison is sample by sample.  Two kinds:
+
+**Case checks** (`rsmcheck check`, `tests/crosscheck`): the case file's `[compare]` table is
+the single source of what is compared and how closely.  Each entry names an observable, a
+tolerance *in the observable's unit* (SI, radians), a `why` sentence and a metric:
+
+    max_abs   max_t max_c |a(t)_c − b(t)_c|                      (default)
+    rms       max_c sqrt(mean_t (a(t)_c − b(t)_c)²)
+    final     max_c |a(T)_c − b(T)_c| at the last sample
+
+(a: the other engine, b: the reference; c runs over the components of the observable).
+The margin is tolerance / error: > 1 passes, and says how much room is left.
+
+**Relative differences** (`compare_runs`: rigid equivalence, convergence studies): the
+difference in units of the observable's size in the reference run,
 
     error = max_t max_c |a(t)_c − b(t)_c| / scale,
-    scale = max(max_t ‖b(t)‖_∞, floor)                (b: the reference run)
+    scale = max(max_t ‖b(t)‖_∞, floor),
 
 `floor` keeps an observable that is zero in the reference (a reaction force with the grasp
 off, momentum of a system at rest) from turning round-off into an infinite relative
-error; the floors are physical sizes, listed in `SCALE_FLOORS` with the reason.  The
-margin is tolerance / error (> 1 passes).
+error; the floors are physical sizes, listed in `SCALE_FLOORS` with the reason.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Mapping
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
+
+#: metrics a [compare] entry may ask for (cases.loader.METRICS names the same ones)
+METRICS = ("max_abs", "rms", "final")
 
 #: smallest scale of each observable [SI]: the size below which a difference means nothing
 SCALE_FLOORS: dict[str, float] = {
@@ -48,6 +65,198 @@ SCALE_FLOORS: dict[str, float] = {
 }
 
 
+def _same_times(case: str, reference: EngineRun, other: EngineRun) -> np.ndarray:
+    ta = np.asarray(reference.observables["time"], float)
+    tb = np.asarray(other.observables["time"], float)
+    if ta.shape != tb.shape or (ta.size and np.max(np.abs(ta - tb)) > 1e-9):
+        raise ValueError(f"{case}: the runs are not sampled at the same times "
+                         f"({ta.size} vs {tb.size} samples)")
+    return ta
+
+
+def _pair(reference: EngineRun, other: EngineRun, name: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    if name not in NAMES or name == "time":
+        raise ValueError(f"no observable named {name!r}")
+    b = np.asarray(reference.observables[name], float).reshape(n, -1)
+    a = np.asarray(other.observables[name], float).reshape(n, -1)
+    return a, b
+
+
+def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = "max_abs",
+               case: str = "") -> tuple[float, float, int]:
+    """(error, time of the worst sample, worst component) of observable `name` by `metric`,
+    in the observable's unit.  `worst_time` is NaN for `rms`."""
+    t = _same_times(case, reference, other)
+    a, b = _pair(reference, other, name, t.size)
+    d = np.abs(a - b)
+    if not d.size:
+        return 0.0, float("nan"), 0
+    if not np.all(np.isfinite(d)):
+        bad = np.argwhere(~np.isfinite(d))[0]
+        return float("inf"), float(t[bad[0]]), int(bad[1])
+    if metric == "max_abs":
+        k = int(np.argmax(d))
+        i, c = divmod(k, d.shape[1])
+        return float(d.flat[k]), float(t[i]), c
+    if metric == "rms":
+        r = np.sqrt(np.mean(d**2, axis=0))
+        c = int(np.argmax(r))
+        return float(r[c]), float("nan"), c
+    if metric == "final":
+        c = int(np.argmax(d[-1]))
+        return float(d[-1, c]), float(t[-1]), c
+    raise ValueError(f"unknown metric {metric!r} (known: {', '.join(METRICS)})")
+
+
+# ---------------------------------------------------------------------------------------
+# case checks: the [compare] table of a case file
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Check:
+    """One row of `rsmcheck check`: one observable of one case, by the case's own rule."""
+
+    case: str
+    observable: str
+    error: float
+    tolerance: float
+    metric: str = "max_abs"
+    why: str = ""
+    worst_time: float = float("nan")
+    worst_component: int = 0
+    reference_range: float = 0.0  # max_t ‖b(t)‖_∞: the size of the observable in the reference
+
+    @property
+    def margin(self) -> float:
+        return self.tolerance / self.error if self.error > 0 else float("inf")
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.error <= self.tolerance)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"case": self.case, "observable": self.observable, "error": _finite(self.error),
+                "tolerance": self.tolerance, "margin": _finite(self.margin), "pass": self.passed,
+                "metric": self.metric, "why": self.why, "worst_time": _finite(self.worst_time),
+                "worst_component": self.worst_component, "reference_range": _finite(self.reference_range)}
+
+
+def _finite(x: float) -> float | str | None:
+    """JSON has no inf/NaN: inf → "inf", NaN → null."""
+    if math.isnan(x):
+        return None
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return x
+
+
+def check_runs(case, reference: EngineRun, other: EngineRun) -> list[Check]:
+    """Every entry of `case.compare` (a `cases.loader.Case`, the variant that was run)."""
+    rows = []
+    t = _same_times(case.name, reference, other)
+    for spec in case.compare:
+        err, tw, c = difference(reference, other, spec.observable, spec.metric, case.name)
+        _, b = _pair(reference, other, spec.observable, t.size)
+        rows.append(Check(case.name, spec.observable, err, float(spec.tolerance), spec.metric, spec.why,
+                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0))
+    return rows
+
+
+@dataclass
+class CaseCheck:
+    """The result of checking one case: its rows, or why there are none."""
+
+    case: str
+    rows: list[Check] = field(default_factory=list)
+    skipped: str = ""  # non-empty: nothing compared, and why
+    runs: dict[str, EngineRun] = field(default_factory=dict)
+    duration: float = 0.0
+    wall_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.rows)
+
+
+def _run_one(engine: str, case, duration: float, options: Mapping[str, Any]) -> EngineRun:
+    """Run one engine on one case (also the target of a worker process)."""
+    from rsmcheck.cli import make_engine
+    from rsmcheck.runner import run
+
+    return run(make_engine(engine, case, **dict(options)), case, duration)
+
+
+def _run_child(engine: str, case, duration: float, options: Mapping[str, Any]):
+    """`_run_one` in a worker process: ("ok", run) or the error's type and arguments
+    (rsmcheck.errors' exceptions do not survive pickling with their arguments)."""
+    from rsmcheck.errors import InputError, SimulationDiverged
+
+    try:
+        return "ok", _run_one(engine, case, duration, options)
+    except SimulationDiverged as exc:
+        return "diverged", (exc.engine, exc.time, exc.phase, exc.quantity, exc.value)
+    except InputError as exc:
+        return "input", (exc.where, exc.field, exc.reason)
+    except (TypeError, ValueError) as exc:  # a bad engine option value
+        return "input", (f"--{engine}", ",".join(f"{k}={v}" for k, v in options.items()) or "options", str(exc))
+
+
+def _unpack(result):
+    from rsmcheck.errors import InputError, SimulationDiverged
+
+    kind, value = result
+    if kind == "diverged":
+        raise SimulationDiverged(*value)
+    if kind == "input":
+        raise InputError(*value)
+    return value
+
+
+def run_pair(case, options: Mapping[str, Mapping[str, Any]] | None = None,
+             parallel: bool = True) -> dict[str, EngineRun]:
+    """Run the reference and Exudyn on `case` (the variant to run), in two processes when
+    `parallel` (the engines are independent; 2 cores halve the wall time)."""
+    options = options or {}
+    engines = ("reference", "exudyn")
+    if not parallel:
+        return {e: _unpack(_run_child(e, case, case.duration, dict(options.get(e, {})))) for e in engines}
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {e: pool.submit(_run_child, e, case, case.duration, dict(options.get(e, {}))) for e in engines}
+        return {e: _unpack(f.result()) for e, f in futures.items()}
+
+
+def check_case(case, short: bool, options: Mapping[str, Mapping[str, Any]] | None = None,
+               parallel: bool = True) -> CaseCheck:
+    """Run both engines on `case` (its short variant with `short`) and apply its [compare]
+    table.  A case without one (or a sequence case) is returned with `skipped` set and
+    nothing run: it is not a pass."""
+    variant = case.variant(short)
+    if case.phases:
+        return CaseCheck(case.name, skipped="a sequence of phases: check its phases "
+                         f"({', '.join(case.phases)}) one by one")
+    if not variant.compare:
+        return CaseCheck(case.name, skipped="no [compare] table in the case file: nothing is compared")
+    if not variant.has_initial:
+        from rsmcheck.errors import InputError
+
+        raise InputError(variant.path, "initial", f"the case only chains from '{variant.start_from}': "
+                         "a check needs a stand-alone [initial] (both engines from the same state)")
+    import time
+
+    t0 = time.monotonic()
+    runs = run_pair(variant, options, parallel)
+    out = CaseCheck(case.name, check_runs(variant, runs["reference"], runs["exudyn"]), runs=runs,
+                    duration=variant.duration)
+    out.wall_s = {e: float(r.solver.get("wall_s", float("nan"))) for e, r in runs.items()}
+    out.wall_s["total"] = time.monotonic() - t0
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# relative differences: every observable, in units of its size
+# ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Comparison:
     case: str
@@ -74,22 +283,27 @@ class Comparison:
 
 
 def compare_runs(case: str, reference: EngineRun, other: EngineRun,
-                 tolerances: Mapping[str, float]) -> list[Comparison]:
-    """Compare `other` against `reference` for every observable that has a tolerance."""
-    ta = reference.observables["time"]
-    tb = other.observables["time"]
-    if ta.shape != tb.shape or np.max(np.abs(ta - tb)) > 1e-9:
-        raise ValueError(f"{case}: the runs are not sampled at the same times "
-                         f"({ta.size} vs {tb.size} samples)")
+                 tolerances: Mapping[str, float], t_from: float | None = None) -> list[Comparison]:
+    """Compare `other` against `reference` for every observable that has a tolerance, in
+    units of the observable's size (scale above).  `t_from`: only samples at t ≥ t_from."""
+    ta = _same_times(case, reference, other)
+    sel = np.ones(ta.size, bool) if t_from is None else ta >= t_from - 1e-12
     rows = []
     for name, tol in tolerances.items():
         if name not in NAMES or name == "time":
             raise ValueError(f"{case}: no observable named {name!r}")
-        b = np.asarray(reference.observables[name], float).reshape(ta.size, -1)
-        a = np.asarray(other.observables[name], float).reshape(ta.size, -1)
-        scale = max(float(np.max(np.abs(b))), SCALE_FLOORS[name])
+        a, b = _pair(reference, other, name, ta.size)
+        a, b, t = a[sel], b[sel], ta[sel]
+        scale = max(float(np.max(np.abs(b))) if b.size else 0.0, SCALE_FLOORS[name])
         diff = np.abs(a - b)
         k = int(np.argmax(diff))
         i, c = divmod(k, diff.shape[1])
-        rows.append(Comparison(case, name, float(diff.flat[k]) / scale, float(tol), scale, float(ta[i]), c))
+        rows.append(Comparison(case, name, float(diff.flat[k]) / scale, float(tol), scale, float(t[i]), c))
     return rows
+
+
+def relative_errors(case: str, reference: EngineRun, other: EngineRun,
+                    names: Sequence[str] | None = None) -> dict[str, float]:
+    """{observable: relative error} for every observable (or `names`)."""
+    names = names or [n for n in NAMES if n != "time"]
+    return {r.observable: r.error for r in compare_runs(case, reference, other, {n: 1.0 for n in names})}

@@ -1,18 +1,36 @@
-"""Controllers: one implementation, used by every engine (docs/physics.md §6).
+"""Controllers: one implementation, used by every engine (docs/physics.md §6, paper Sect. 3).
 
 A controller maps the `Sensors` of one sample to the `Inputs` held until the next one and
-applies the saturations of Tables 3–4 (|τ_B| ≤ 12 N·m, |τ_m| ≤ 80 N·m).
+applies the saturations of Tables 3–4 (|τ_B| ≤ 12 N·m, |τ_m| ≤ 80 N·m).  The laws:
+
+* base attitude, eq. (13):   τ_B = −k_p,B (θ_B − θ_B^des) − k_d,B (θ̇_B − θ̇_B^des)
+* arms, eq. (14):            τ_m,j = −K_p,j J_EE,jᵀ e_EE,j − K_d,j θ̇_J,j
+  e_EE = (x − x_des, y − y_des, φ − φ_des): end-effector position in the base frame
+  (about the base COM) and terminal-link attitude φ = θ_J1 + θ_J2 + θ_J3 relative to the
+  base.  J_EE (3×3) comes from the controller's **own rigid kinematic model** of the arm
+  (`ArmModel`: mount point and link lengths from `Params`, links straight) — a controller
+  knows its nominal geometry, not the deflected shape.  The position in e_EE is either the
+  measured end effector (`feedback = "measured"`, default: the deflected tip, as a camera
+  or a grapple sensor sees it) or the rigid model's tip from the joint angles
+  (`feedback = "kinematic"`).
+
+Desired conditions are fixed (hold, freeze) or quintic moves (`rsmcheck.trajectories`).
+The programme (which arm does what, when) is a sequence of segments of the case file, run
+by `ProgrammeController` together with `rsmcheck.runner`.
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
-from cases.loader import ControllerSpec
+from cases.loader import ArmCommand, ControllerSpec, Segment
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.params import Params
+from rsmcheck.trajectories import Quintic
 
 Controller = Callable[[Sensors], Inputs]
 
@@ -25,11 +43,413 @@ def saturate(inputs: Inputs, params: Params) -> Inputs:
                   thrust=inputs.thrust)
 
 
-def make_controller(spec: ControllerSpec, params: Params) -> Controller:
-    """The controller a case names."""
+def _rot(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s], [s, c]])
+
+
+def wrap_near(angle: float, reference: float) -> float:
+    """`angle` + 2πk closest to `reference`."""
+    return angle + 2.0 * math.pi * round((reference - angle) / (2.0 * math.pi))
+
+
+# ---------------------------------------------------------------------------------------
+# The controller's internal model
+# ---------------------------------------------------------------------------------------
+class ArmModel:
+    """Rigid kinematic model of arm `arm` in the base frame (the controller's own model).
+
+    Links are straight segments of length L between pins; the first pin is the mount point.
+    `pose(q)` = (x, y, φ) of the end effector (distal pin of link 3) and terminal-link
+    attitude, `jacobian(q)` = ∂(x, y, φ)/∂(θ_J1, θ_J2, θ_J3).
+    """
+
+    def __init__(self, params: Params, arm: int):
+        self.arm = arm
+        self.mount = np.asarray(params.geometry.mount_B(arm), float)
+        self.length = params.link.length
+
+    def pins(self, q) -> np.ndarray:
+        """The four pins (mount, elbows, end effector), base frame, rows."""
+        out = np.empty((4, 2))
+        p = self.mount.copy()
+        th = 0.0
+        out[0] = p
+        for s in range(3):
+            th += q[s]
+            p = p + self.length * np.array([math.cos(th), math.sin(th)])
+            out[s + 1] = p
+        return out
+
+    def pose(self, q) -> np.ndarray:
+        pins = self.pins(q)
+        return np.array([pins[3, 0], pins[3, 1], q[0] + q[1] + q[2]])
+
+    def jacobian(self, q) -> np.ndarray:
+        pins = self.pins(q)
+        e = pins[3]
+        jac = np.ones((3, 3))
+        for s in range(3):
+            d = e - pins[s]
+            jac[0, s] = -d[1]
+            jac[1, s] = d[0]
+        return jac
+
+    def inverse(self, goal, guess, tol: float = 1e-12, iterations: int = 100) -> np.ndarray:
+        """Joint angles reaching pose `goal` = (x, y, φ) (Newton from `guess`)."""
+        q = np.asarray(guess, float).copy()
+        goal = np.asarray(goal, float)
+        for _ in range(iterations):
+            err = goal - self.pose(q)
+            if np.linalg.norm(err) < tol:
+                return q
+            q = q + np.linalg.lstsq(self.jacobian(q), err, rcond=None)[0]
+        raise ValueError(f"arm {self.arm}: pose {goal} not reachable (residual {np.linalg.norm(err):.3g})")
+
+
+# ---------------------------------------------------------------------------------------
+# The two control laws
+# ---------------------------------------------------------------------------------------
+def base_pd(theta: float, rate: float, theta_des: float, rate_des: float, kp: float, kd: float) -> float:
+    """Eq. (13), before saturation."""
+    return -kp * (theta - theta_des) - kd * (rate - rate_des)
+
+
+def jacobian_transpose(jac: np.ndarray, error: np.ndarray, joint_rates: np.ndarray,
+                       kp: np.ndarray, kd: np.ndarray) -> np.ndarray:
+    """Eq. (14), before saturation: −K_p J_EEᵀ e_EE − K_d θ̇_J (K_p applied to e, K_d to θ̇)."""
+    return -(jac.T @ (kp * error)) - kd * joint_rates
+
+
+@dataclass(frozen=True)
+class Measured:
+    """What the programme uses, derived from `Sensors` (base frame, about the base COM)."""
+
+    ee_B: np.ndarray  # (2, 3): x, y, φ of each end effector
+    target_B: np.ndarray  # x, y, θ of the target COM
+    target_rate_B: np.ndarray  # ẋ, ẏ, θ̇ relative to the base, in base axes
+
+
+def measure(s: Sensors, arms: tuple[ArmModel, ArmModel], feedback: str) -> Measured:
+    rb = s.base_pose_I[:2]
+    th = s.base_pose_I[2]
+    AT = _rot(th).T
+    ee = np.empty((2, 3))
+    for k in range(2):
+        q = s.joint_angles[3 * k:3 * k + 3]
+        if feedback == "kinematic":
+            ee[k] = arms[k].pose(q)
+        else:
+            ee[k, :2] = AT @ (s.ee_pos_I[k] - rb)
+            ee[k, 2] = float(np.sum(q))
+    d = s.target_pose_I[:2] - rb
+    tgt = np.array([*(AT @ d), s.target_pose_I[2] - th])
+    om = s.base_rate_I[2]
+    dv = s.target_rate_I[:2] - s.base_rate_I[:2] - om * np.array([-d[1], d[0]])
+    rate = np.array([*(AT @ dv), s.target_rate_I[2] - om])
+    return Measured(ee, tgt, rate)
+
+
+# ---------------------------------------------------------------------------------------
+# Reference generators for one arm
+# ---------------------------------------------------------------------------------------
+class ArmReference:
+    """Desired (x, y, φ) of one end effector as a function of time and measurements."""
+
+    def __call__(self, t: float, m: Measured) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def goal(self) -> np.ndarray | None:
+        """Where this reference ends (held by a following "hold"), None if it moves with
+        the target."""
+        return None
+
+
+class Fixed(ArmReference):
+    def __init__(self, pose):
+        self.pose = np.asarray(pose, float).copy()
+
+    def __call__(self, t, m):
+        return self.pose
+
+    def goal(self):
+        return self.pose
+
+
+class Move(ArmReference):
+    """Quintic from the pose at entry to `goal` over `duration` s, then hold."""
+
+    def __init__(self, start, goal, t0, duration):
+        self.q = Quintic(start, goal, t0, duration)
+
+    def __call__(self, t, m):
+        return self.q(t)
+
+    def goal(self):
+        return self.q.p1
+
+
+class Approach(ArmReference):
+    """Quintic blend from the entry pose onto a point of the target (which may move):
+    desired = p0 + s(t)·(p_point(t) − p0); attitude quintic to `phi` (or held)."""
+
+    def __init__(self, start, point_T, phi_goal, t0, duration):
+        self.start = np.asarray(start, float).copy()
+        self.point_T = np.asarray(point_T, float).copy()  # target frame about the COM
+        self.phi = Quintic([start[2]], [start[2] if phi_goal is None else phi_goal], t0, duration)
+        self.t0, self.duration = t0, duration
+
+    def point_B(self, m: Measured) -> np.ndarray:
+        return m.target_B[:2] + _rot(m.target_B[2]) @ self.point_T
+
+    def __call__(self, t, m):
+        from rsmcheck.trajectories import quintic
+
+        s, _, _ = quintic(t, self.t0, self.duration)
+        p = self.start[:2] + s * (self.point_B(m) - self.start[:2])
+        return np.array([p[0], p[1], self.phi(t)[0]])
+
+
+class Held(ArmReference):
+    """End effector of an arm that holds the target, following a desired target pose
+    (x, y, θ in the base frame, a callable of t): p = r_T + A(θ_T) ρ, φ = θ_T − ψ0."""
+
+    def __init__(self, target_ref: Callable[[float], np.ndarray], rho_T, psi0: float):
+        self.target_ref = target_ref
+        self.rho = np.asarray(rho_T, float).copy()
+        self.psi0 = psi0
+
+    def __call__(self, t, m):
+        return self._ee(self.target_ref(t))
+
+    def _ee(self, x):
+        p = x[:2] + _rot(x[2]) @ self.rho
+        return np.array([p[0], p[1], x[2] - self.psi0])
+
+    def goal(self):
+        final = getattr(self.target_ref, "final_pose", None)
+        return self._ee(final()) if final is not None else None
+
+
+# ---------------------------------------------------------------------------------------
+# Composite controller
+# ---------------------------------------------------------------------------------------
+class ProgrammeController:
+    """Base PD (eq. 13) + Jacobian transpose (eq. 14) per arm, driven by segments.
+
+    The runner calls `enter(segment, sensors)` at the first sample of each segment and
+    `captured(arm, sensors)` after a grasp closes; `__call__(sensors)` returns the inputs.
+    """
+
+    def __init__(self, spec: ControllerSpec, params: Params, period: float):
+        self.spec = spec
+        self.period = period
+        self.params = params
+        self.arms = (ArmModel(params, 1), ArmModel(params, 2))
+        self.kp = np.array([spec.arm1.kp, spec.arm2.kp], float)
+        self.kd = np.array([spec.arm1.kd, spec.arm2.kd], float)
+        self.refs: list[ArmReference | None] = [None, None]
+        self.open_loop = [np.zeros(3), np.zeros(3)]
+        self.base_mode = "hold"
+        self.base_goal = 0.0
+        self.thrust = 0.0
+        self.frozen: Measured | None = None
+        self.frozen_base = 0.0
+        self.segment: Segment | None = None
+        self.com_align: "ComAlignment | None" = None
+        self.log: list[tuple[float, str, str]] = []  # events for the runner (time, kind, detail)
+        self.rates = np.zeros(6)  # the joint-rate estimate used by eq. (14)
+        self.t_prev: float | None = None
+
+    # ---- programme ------------------------------------------------------------------
+    def start(self, s: Sensors) -> None:
+        """First sample of the case: remember the configuration for `freeze`."""
+        self.frozen = measure(s, self.arms, self.spec.feedback)
+        self.frozen_base = float(s.base_pose_I[2])
+        self.rates = np.asarray(s.joint_rates, float).copy()
+
+    def enter(self, seg: Segment, s: Sensors) -> None:
+        self.segment = seg
+        m = measure(s, self.arms, self.spec.feedback)
+        t0 = s.time
+        self.thrust = self.params.actuators.thrust if seg.thrust else 0.0
+        self.base_mode = seg.base
+        if seg.base == "hold":
+            self.base_goal = float(s.base_pose_I[2])
+        elif seg.base == "freeze":
+            self.base_goal = self.frozen_base
+        elif seg.base == "angle":
+            self.base_goal = math.radians(seg.base_angle_deg)
+        self.com_align = None
+        target_ref = None
+        if seg.target is not None:
+            if seg.target.mode == "move":
+                goal = np.array([seg.target.to[0], seg.target.to[1], math.radians(seg.target.to[2])])
+                goal[2] = wrap_near(goal[2], m.target_B[2])
+                tq = Quintic(m.target_B, goal, t0, seg.target.time or seg.duration)
+                target_ref = tq
+            elif seg.target.mode == "push":
+                d = np.array([seg.target.by[0], seg.target.by[1], 0.0])
+                tq = Quintic(m.target_B, m.target_B + d, t0, seg.target.time or seg.duration)
+                target_ref = tq
+            elif seg.target.mode == "com_align":
+                self.com_align = ComAlignment(m.target_B, seg.target, t0, self.params)
+                target_ref = self.com_align
+        for k, cmd in enumerate((seg.arm1, seg.arm2)):
+            self.refs[k] = self._reference(k, cmd, m, t0, seg, target_ref)
+            self.open_loop[k] = np.array(cmd.torques if cmd.mode == "torque" else (0.0, 0.0, 0.0), float)
+
+    def _reference(self, k: int, cmd: ArmCommand, m: Measured, t0: float, seg: Segment,
+                   target_ref) -> ArmReference | None:
+        mode = cmd.mode
+        if mode in ("off", "torque"):
+            return None
+        if mode == "hold":
+            # finish the last commanded motion (a move, or a carry after a release) and stay
+            # at its goal; after anything else (an approach, no reference) stay where it is
+            prev = self.refs[k]
+            if prev is not None and prev.goal() is not None:
+                return prev
+            return Fixed(m.ee_B[k])
+        if mode == "freeze":
+            assert self.frozen is not None
+            return Fixed(self.frozen.ee_B[k])
+        if mode == "move":
+            goal = np.array([cmd.to[0], cmd.to[1], math.radians(cmd.to[2])])
+            goal[2] = wrap_near(goal[2], m.ee_B[k, 2])
+            return Move(m.ee_B[k], goal, t0, cmd.time or seg.duration)
+        if mode == "approach":
+            point = np.asarray(cmd.point_T, float)
+            phi = None if cmd.phi_deg is None else wrap_near(math.radians(cmd.phi_deg), m.ee_B[k, 2])
+            return Approach(m.ee_B[k], point, phi, t0, cmd.time or seg.duration)
+        if mode == "carry":
+            # the end effector follows the target's desired pose at its current held point
+            rho = _rot(m.target_B[2]).T @ (m.ee_B[k, :2] - m.target_B[:2])
+            psi0 = m.target_B[2] - m.ee_B[k, 2]
+            return Held(target_ref, rho, psi0)
+        raise ValueError(f"unknown arm mode {mode!r}")  # pragma: no cover - the loader checks
+
+    def captured(self, arm: int, s: Sensors) -> None:
+        """A grasp closed: the capturing arm holds where it is (until the next segment)."""
+        m = measure(s, self.arms, self.spec.feedback)
+        self.refs[arm - 1] = Fixed(m.ee_B[arm - 1])
+
+    # ---- the laws ---------------------------------------------------------------------
+    def __call__(self, s: Sensors) -> Inputs:
+        m = measure(s, self.arms, self.spec.feedback)
+        t = s.time
+        # joint-rate estimate: first-order low-pass (discrete, one update per sample, exact
+        # for the sample interval, which a quiet segment may lengthen)
+        dt = self.period if self.t_prev is None or t <= self.t_prev else t - self.t_prev
+        self.t_prev = t
+        fc = self.spec.rate_filter_hz
+        alpha = 1.0 - math.exp(-2.0 * math.pi * fc * dt) if fc > 0 else 1.0
+        self.rates += alpha * (np.asarray(s.joint_rates, float) - self.rates)
+        if self.com_align is not None:
+            note = self.com_align.update(t, s)
+            if note:
+                self.log.append((t, "com_align", note))
+        tau = np.zeros(6)
+        for k in range(2):
+            q = s.joint_angles[3 * k:3 * k + 3]
+            ref = self.refs[k]
+            if ref is None:  # off or open loop
+                tau[3 * k:3 * k + 3] = self.open_loop[k]
+                continue
+            des = ref(t, m)
+            err = m.ee_B[k] - des
+            err[2] = math.remainder(err[2], 2.0 * math.pi)
+            tau[3 * k:3 * k + 3] = jacobian_transpose(self.arms[k].jacobian(q), err,
+                                                      self.rates[3 * k:3 * k + 3], self.kp[k], self.kd[k])
+        tau_B = 0.0
+        b = self.spec.base
+        if self.base_mode != "off":
+            if self.base_mode == "retrograde":
+                goal, rate = retrograde_attitude(s.orbit_r_I, s.orbit_v_I, self.params.orbit.mu)
+                goal = wrap_near(goal, s.base_pose_I[2])
+            else:
+                goal, rate = self.base_goal, 0.0
+            tau_B = base_pd(s.base_pose_I[2], s.base_rate_I[2], goal, rate, b.kp, b.kd)
+        return saturate(Inputs(tau_m=tau, tau_B=tau_B, thrust=self.thrust), self.params)
+
+
+def retrograde_attitude(r, v, mu: float) -> tuple[float, float]:
+    """Attitude whose +x points against the orbital velocity, and its rate (Kepler motion):
+    θ = atan2(−v), θ̇ = (v × a)/|v|² with a = −μ r/|r|³."""
+    r = np.asarray(r, float)
+    v = np.asarray(v, float)
+    if not np.any(v):
+        return 0.0, 0.0
+    rn = float(np.hypot(*r))
+    a = -mu * r / rn**3
+    v2 = float(v @ v)
+    return math.atan2(-v[1], -v[0]), float(v[0] * a[1] - v[1] * a[0]) / v2
+
+
+class ComAlignment:
+    """The iterative COM alignment of Sect. 5.3 as a desired target pose (base frame).
+
+    The apogee motor's thrust passes through the base COM along +x_B, so the system COM
+    must lie on the base x-axis (com_pos_B[1] = 0).  Each iteration: read com_pos_B[1]
+    (after the previous move has settled), move the target across the thrust axis by
+    Δy = −gain·y_COM with a quintic of `step_time` s, wait `settle_time` s.  The first gain
+    is the controller's rigid estimate m_sys / (m_T + 3 m_link) (the target and roughly one
+    arm's worth of links move with it); later iterations use the secant of the measured
+    response.  Stops when |y_COM| < `tolerance`.
+    """
+
+    def __init__(self, start_B, spec, t0: float, params: Params):
+        self.pose = np.asarray(start_B, float).copy()
+        self.spec = spec
+        self.t_next = t0
+        m_sys = params.base.mass + params.target.mass + 6 * params.link.mass
+        self.gain = m_sys / (params.target.mass + 3 * params.link.mass)
+        self.move: Quintic | None = None
+        self.last: tuple[float, float] | None = None  # (offset applied, y measured before)
+        self.offset = 0.0
+        self.iterations = 0
+        self.done = False
+
+    def update(self, t: float, s: Sensors) -> str:
+        if self.done or t + 1e-12 < self.t_next:
+            return ""
+        y = float(s.com_pos_B[1])
+        note = ""
+        if self.last is not None:
+            dy_applied, y_before = self.last
+            if abs(y - y_before) > 1e-9 and abs(dy_applied) > 1e-12:
+                measured_gain = dy_applied / (y - y_before)
+                if 0.2 * self.gain < measured_gain < 5.0 * self.gain:
+                    self.gain = measured_gain
+        if abs(y) < self.spec.tolerance or self.iterations >= self.spec.max_iterations:
+            self.done = True
+            return f"iterations={self.iterations} com_y={y:.6g}"
+        step = -self.gain * y
+        start = self.pose + np.array([0.0, self.offset, 0.0])
+        self.offset += step
+        self.move = Quintic(start, self.pose + np.array([0.0, self.offset, 0.0]), t, self.spec.step_time)
+        self.last = (step, y)
+        self.iterations += 1
+        self.t_next = t + self.spec.step_time + self.spec.settle_time
+        note = f"iteration={self.iterations} com_y={y:.6g} step={step:.6g} gain={self.gain:.4g}"
+        return note
+
+    def __call__(self, t: float) -> np.ndarray:
+        if self.move is None:
+            return self.pose
+        return self.move(t)
+
+    def final_pose(self) -> np.ndarray:
+        return self.pose + np.array([0.0, self.offset, 0.0])
+
+
+def make_controller(spec: ControllerSpec, params: Params, period: float = 1e-3):
+    """The controller a case names; `period` is the control period (the rate filter's)."""
     if spec.kind == "none":
         return lambda s: Inputs()
     if spec.kind == "constant":
         held = saturate(Inputs(tau_m=np.array(spec.motor_torques, float), tau_B=spec.base_torque), params)
         return lambda s: Inputs(tau_m=held.tau_m.copy(), tau_B=held.tau_B, thrust=0.0)
+    if spec.kind == "programme":
+        return ProgrammeController(spec, params, period)
     raise ValueError(f"unknown controller kind {spec.kind!r}")

@@ -2,14 +2,22 @@
 
 At every control sample t_k = k·Δt:
   1. scheduled releases due at t_k are applied;
-  2. if capture is enabled, the two IF conditions (Sect. 2: relative position and velocity
-     of the end effector to the designated capture point below thresholds) are evaluated,
-     and the grasp is switched on when both hold;
-  3. the wrist bistop contact state is logged (ψ beyond ±ψ_lim);
-  4. the controller computes the inputs, held until t_{k+1};
-  5. every `output_every` samples the observables are recorded;
-  6. the engine integrates to t_{k+1}.
-Every engine gets the same loop; only step 6 and the switching are engine code.
+  2. a programme case enters its next segment when the current one is over: the
+     segment's releases are applied, its capture (arm and designated point) is armed, the
+     controller takes its new references;
+  3. if a capture is armed, the two IF conditions (Sect. 2: relative position and
+     velocity of the end effector to the designated capture point below thresholds) are
+     evaluated, and the grasp is switched on when both hold (a segment with
+     until = "capture" then ends after its `settle` time);
+  4. the wrist bistop contact state is logged (ψ beyond ±ψ_lim);
+  5. the controller computes the inputs, held until t_{k+1};
+  6. every `output_every` samples the observables are recorded;
+  7. the engine integrates to t_{k+1}.
+Every engine gets the same loop; only step 7 and the switching are engine code.
+
+`capture_gap_B` is computed here from the engine's sensors, for the capture currently
+armed (arm and designated point change from segment to segment, e.g. the regrasp of p2),
+so both engines report the gap to the same point by the same formula.
 """
 
 from __future__ import annotations
@@ -22,7 +30,7 @@ from typing import Callable
 import numpy as np
 
 from cases.loader import Case
-from rsmcheck.controllers import make_controller
+from rsmcheck.controllers import ProgrammeController, make_controller
 from rsmcheck.engine import Engine, Inputs, Sensors
 from rsmcheck.errors import SimulationDiverged
 from rsmcheck.observables import NAMES
@@ -51,6 +59,12 @@ def if_conditions(s: Sensors, arm: int, rho_T: np.ndarray, distance: float, spee
     return gap < distance and rel < speed, gap, rel
 
 
+def capture_gap_B(s: Sensors, arm: int, rho_T: np.ndarray) -> np.ndarray:
+    """End effector `arm` minus the target point ρ_T, base axes (the observable of Fig. 10)."""
+    p, _ = capture_point(s, rho_T)
+    return _rot(s.base_pose_I[2]).T @ (s.ee_pos_I[arm - 1] - p)
+
+
 def wrist_angle(s: Sensors, arm: int) -> float:
     """ψ = θ_T − θ_3 of `arm`; joint angles are between link frames, so θ_3 = θ_B + Σθ_J."""
     return float(s.target_pose_I[2] - s.base_pose_I[2] - np.sum(s.joint_angles[3 * (arm - 1):3 * arm]))
@@ -74,36 +88,99 @@ def terminal_progress(engine: str, case: str) -> Progress | None:
     return report
 
 
-def run(engine: Engine, case: Case, duration: float, progress: Progress | None = None) -> EngineRun:
-    """Drive `engine` through `case` for `duration` seconds and collect an `EngineRun`."""
+def run(engine: Engine, case: Case, duration: float | None = None, progress: Progress | None = None) -> EngineRun:
+    """Drive `engine` through `case` for `duration` seconds (default: the case's) and collect
+    an `EngineRun`.
+
+    A `duration` equal to the short variant's selects the short variant's programme (the
+    command line passes `case.run_duration(short)`; the short variant differs only in
+    durations, programme, events, solver and comparison, never in the initial state).
+    """
+    if case.phases:
+        from rsmcheck.errors import InputError
+
+        raise InputError(case.path, "phases", "a sequence case runs through rsmcheck.chain.run_case")
+    if duration is None:
+        duration = case.duration
+    elif case.short is not None and not case.is_short and duration != case.duration \
+            and math.isclose(duration, case.short.duration):
+        case = case.short
     params = case.params
-    dt = case.solver.control_period
-    n_steps = int(round(duration / dt))
-    every = case.solver.output_every
-    controller = make_controller(case.controller, params)
+    dt_case = case.solver.control_period
+    t_end = duration
+    eps = 1e-9 * max(1.0, duration)
+    out_period = case.solver.output_period
+    controller = make_controller(case.controller, params, dt_case)
+    programme = controller if isinstance(controller, ProgrammeController) else None
+    segments = list(case.segments)
     releases = list(case.releases)
     events: list[Event] = []
     samples: list[dict] = []
+    phases: list[Phase] = []
     contact = [False, False]
     phase = case.name
-    arm_c = case.capture.arm
-    rho_c = np.asarray(params.geometry.grasp_T(arm_c), float)
+    # the capture armed now: case-level [capture] (feature cases) or the segment's
+    armed: tuple[int, np.ndarray] | None = None
+    report_arm = case.capture.arm
+    report_point = np.asarray(case.capture_point_T(), float)
+    if case.capture.enabled:
+        armed = (case.capture.arm, report_point)
+    seg_index = -1
+    seg_end = 0.0
+    seg_start = 0.0
+    dt = dt_case
+    t = 0.0
+    k = 0
+    next_out = 0.0
     started = wallclock.monotonic()
-    for k in range(n_steps + 1):
-        t = k * dt
+    while True:
         s = engine.sensors()
-        while releases and releases[0].time <= t + 0.5 * dt:
+        if programme is not None and k == 0:
+            programme.start(s)
+        while releases and releases[0].time <= t + 0.5 * dt_case:
             rel = releases.pop(0)
-            info = engine.release(rel.arm)
-            events.append(Event(t, "release", _detail(rel.arm, info)))
+            if s.grasp_state[rel.arm - 1]:
+                info = engine.release(rel.arm)
+                events.append(Event(t, "release", _detail(rel.arm, info)))
+                s = engine.sensors()
+        if programme is not None and seg_index + 1 < len(segments) and (seg_index < 0 or t >= seg_end - eps):
+            if seg_index >= 0:
+                phases.append(Phase(f"{case.name}:{segments[seg_index].name}", seg_start, t))
+                if armed is not None and segments[seg_index].capture is not None:
+                    events.append(Event(t, "capture_missed", f"arm={armed[0]} segment={segments[seg_index].name}"))
+            seg_index += 1
+            seg = segments[seg_index]
+            seg_start = t
+            seg_end = t + seg.duration
+            dt = seg.control_period or dt_case
+            events.append(Event(t, "segment", seg.name))
+            for arm in seg.release:
+                if s.grasp_state[arm - 1]:
+                    info = engine.release(arm)
+                    events.append(Event(t, "release", _detail(arm, info)))
+                else:
+                    events.append(Event(t, "release_skipped", f"arm={arm} does not hold the target"))
             s = engine.sensors()
-        if case.capture.enabled and not s.grasp_state[arm_c - 1]:
+            if seg.capture is not None:
+                armed = (seg.capture.arm, np.asarray(seg.capture.point_T, float))
+                report_arm, report_point = armed
+            else:
+                armed = None
+            programme.enter(seg, s)
+        if armed is not None and not s.grasp_state[armed[0] - 1]:
+            arm_c, rho_c = armed
             ok, gap, speed = if_conditions(s, arm_c, rho_c, params.grasp.capture_distance, params.grasp.capture_speed)
             if ok:
                 info = engine.capture(arm_c)
                 info.update(gap_m=gap, rel_speed_mps=speed)
                 events.append(Event(t, "capture", _detail(arm_c, info)))
                 s = engine.sensors()
+                armed = None
+                if programme is not None:
+                    programme.captured(arm_c, s)
+                    seg = segments[seg_index]
+                    if seg.until == "capture":
+                        seg_end = min(seg_end, t + seg.settle)
         for arm in (1, 2):
             touching = bool(s.grasp_state[arm - 1]) and abs(wrist_angle(s, arm)) > params.wrist.limit
             if touching != contact[arm - 1]:
@@ -111,21 +188,49 @@ def run(engine: Engine, case: Case, duration: float, progress: Progress | None =
                 events.append(Event(t, "bistop_contact" if touching else "bistop_free",
                                     f"arm={arm} psi={wrist_angle(s, arm):.6f}"))
         u: Inputs = controller(s)
-        if k % every == 0:
-            samples.append(engine.observe(u))
-        if k == n_steps:
+        if programme is not None and programme.log:
+            events.extend(Event(te, kind, detail) for te, kind, detail in programme.log)
+            programme.log.clear()
+        done = t >= t_end - eps
+        if t >= next_out - eps or done:
+            sample = engine.observe(u)
+            sample["capture_gap_B"] = capture_gap_B(s, report_arm, report_point)
+            samples.append(sample)
+            while next_out <= t + eps:
+                next_out += out_period
+        if done:
             break
+        # the next sample: one control period on, clipped to the next segment boundary
+        # and to the end (durations need not be whole numbers of a long period)
+        t_next = t + dt
+        if programme is not None and seg_index + 1 < len(segments) and t_next > seg_end - eps:
+            t_next = seg_end
+        t_next = min(t_next, t_end)
+        if dt == dt_case:  # on the case's grid: no drift of round-off over long runs
+            t_next = min(round(t_next / dt_case) * dt_case, t_end) if abs(t_next / dt_case - round(
+                t_next / dt_case)) < 1e-6 else t_next
         try:
-            engine.advance((k + 1) * dt, u)
+            engine.advance(t_next, u)
         except SimulationDiverged as exc:
             raise SimulationDiverged(exc.engine, exc.time, phase, exc.quantity, exc.value) from None
+        t = t_next
+        k += 1
         if progress is not None:
-            progress(phase, (k + 1) * dt, n_steps * dt)
+            progress(phase, t, t_end)
+    t_final = t
+    if programme is not None and seg_index >= 0:
+        phases.append(Phase(f"{case.name}:{segments[seg_index].name}", seg_start, t_final))
+        if seg_index + 1 < len(segments):
+            events.append(Event(t_final, "programme_incomplete",
+                                f"ended in segment '{segments[seg_index].name}'"))
+    if armed is not None and programme is not None and segments[seg_index].capture is not None:
+        events.append(Event(t_final, "capture_missed", f"arm={armed[0]} segment={segments[seg_index].name}"))
     observables = {name: np.array([smp[name] for smp in samples]) for name in NAMES}
     solver = dict(engine.solver_settings())
     solver["wall_s"] = wallclock.monotonic() - started
     return EngineRun(engine=engine.name, observables=observables, events=events,
-                     phases=[Phase(phase, 0.0, n_steps * dt)], solver=solver, versions=engine.versions())
+                     phases=[Phase(phase, 0.0, t_final), *phases], solver=solver,
+                     versions=engine.versions())
 
 
 def _detail(arm: int, info: dict[str, float]) -> str:

@@ -169,3 +169,24 @@ def test_release_basis_switch_matches_reference():
     rows = {r.observable: r for r in compare_runs(case.name, ref, exu, {n: 1.0 for n in ALL})}
     for name in ("base_pose_I", "ee1_pos_B", "ee2_pos_B", "joint_angles", "target_pose_B", "com_pos_B"):
         assert rows[name].error < 2e-4, (name, rows[name].error)
+
+
+@pytest.mark.parametrize("stepping", ["continuous", "period"])
+def test_intervals_other_than_the_control_period(free_drift, stepping):
+    """The runner may advance by a segment's own control period or by an interval clipped at
+    a segment boundary: the step stays h = control_period/substeps (an interval that is not
+    a whole number of steps gets equal steps ≤ h), and with no inputs the trajectory does
+    not depend on how the time axis is cut."""
+    def final(spans):
+        eng = ExudynEngine(free_drift, rigid=True, stepping=stepping)
+        t = 0.0
+        for span in spans:
+            t += span
+            eng.advance(t, Inputs())
+        assert abs(eng.mbs.systemData.GetTime() - t) < 1e-12
+        return eng._qv()[0]
+
+    base = final([1e-3] * 30)
+    assert np.abs(final([1e-3] * 5 + [1e-2] * 2 + [1e-3] * 5) - base).max() < 1e-12
+    # 0.7 ms and 1.3 ms: 2 and 3 steps of 0.35 and 0.43 ms instead of 0.5 ms (O(h²) apart)
+    assert np.abs(final([1e-3] * 5 + [7e-4, 1.3e-3] + [1e-3] * 23) - base).max() < 1e-9

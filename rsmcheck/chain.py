@@ -1,0 +1,314 @@
+"""Phase chaining: end states, starting a case from another's end state, the mission.
+
+Every run of a case stores its end state next to its HDF5 file, `DIR/CASE.end.json`
+(`DIR/CASE.short.end.json` for the --short variant), one entry per engine:
+
+* ``rigid`` — the common part every engine can start from: base pose and rates, joint
+  and motor angles and rates, target pose and rates, grasp state, held points (target
+  frame about the COM), orbit state of the co-moving point O, propellant used, system
+  COM position and velocity (relative to O), end time.  It is taken from the engine's
+  `Sensors` and observables, so it means the same for every engine.
+* ``exact`` — the engine's own full state, under the engine's name (the reference: its
+  ODE state vector with the modal amplitudes, the link bases, grasp flags and held
+  points).  An engine restores it when it can (same model size); otherwise it starts
+  from the rigid part with undeformed links (Exudyn, or a reference with another number
+  of modes).  An engine may offer `export_state() -> dict` and
+  `import_state(dict) -> None` (optional additions to the Engine protocol) for its own
+  exact state.
+
+A case with `start_from = "P"` starts from the end state of P written by the same engine
+(and the same variant: full or --short).  When it enters an orbit the previous phase did
+not have (p3 → p4), O is placed on the case's circular orbit at the system COM
+(`rsmcheck.initial.place_on_orbit`), the same shift for the rigid and the exact state.
+
+The `mission` case runs its phases in sequence in memory, each phase starting from the
+previous one's end state, and writes one run file with continuous time, every phase and
+segment boundary in `phases`, and the events of all phases.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from cases.loader import Case, load_case
+from rsmcheck.engine import Inputs
+from rsmcheck.errors import InputError
+from rsmcheck.initial import orbit_start
+from rsmcheck.observables import NAMES
+from rsmcheck.store import EngineRun, Event, Phase, write_run
+
+FORMAT = "rsmcheck-endstate"
+FORMAT_VERSION = 1
+RIGID_KEYS = ("base_pose", "base_rate", "joint_angles", "joint_rates", "motor_angles", "motor_rates",
+              "target_pose", "target_rate", "grasp", "held_points", "orbit_r", "orbit_v", "m_used",
+              "com_I", "com_vel_I", "t_end")
+
+
+def _rot(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s], [s, c]])
+
+
+# ---------------------------------------------------------------------------------------
+# export
+# ---------------------------------------------------------------------------------------
+def rigid_state(engine, params) -> dict[str, Any]:
+    """The common rigid part of the engine's current state (from its sensors)."""
+    s = engine.sensors()
+    obs = engine.observe(Inputs())
+    held = np.zeros((2, 2))
+    for k in range(2):
+        # the held point: where the end effector is on the target (≡ ρ_G up to φ_T)
+        held[k] = _rot(s.target_pose_I[2]).T @ (s.ee_pos_I[k] - s.target_pose_I[:2])
+    com_I = s.base_pose_I[:2] + _rot(s.base_pose_I[2]) @ s.com_pos_B
+    m_total0 = params.base.mass + params.target.mass + 6 * params.link.mass
+    mass = float(s.system_mass)
+    return {
+        "base_pose": s.base_pose_I, "base_rate": s.base_rate_I, "joint_angles": s.joint_angles,
+        "joint_rates": s.joint_rates, "motor_angles": s.motor_angles, "motor_rates": s.motor_rates,
+        "target_pose": s.target_pose_I, "target_rate": s.target_rate_I,
+        "grasp": [int(g) for g in s.grasp_state], "held_points": held,
+        "orbit_r": s.orbit_r_I, "orbit_v": s.orbit_v_I, "m_used": m_total0 - mass,
+        "com_I": com_I, "com_vel_I": np.asarray(obs["momentum_I"][:2], float) / mass,
+        "t_end": float(s.time),
+    }
+
+
+def exact_state(engine) -> dict[str, Any] | None:
+    """The engine's own full state, or None if it has no way to give it."""
+    hook = getattr(engine, "export_state", None)
+    if callable(hook):
+        return hook()
+    if getattr(engine, "name", "") == "reference" and hasattr(engine, "x") and hasattr(engine, "cfg"):
+        lay = engine.model.layout
+        return {"x": engine.x, "basis": engine.cfg.basis, "grasp_on": engine.cfg.grasp_on,
+                "rho_G": engine.cfg.rho_G, "n_modes": list(lay.n_modes), "orbit": bool(engine.model.orbit)}
+    return None
+
+
+def end_state(engine, params) -> dict[str, Any]:
+    return {"rigid": rigid_state(engine, params), "exact": exact_state(engine)}
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _jsonable(v.tolist())
+    if isinstance(v, (np.floating, float)):
+        return float(v)
+    if isinstance(v, (np.integer, int)) and not isinstance(v, bool):
+        return int(v)
+    return v
+
+
+def end_state_path(out_dir: str | Path, case_name: str, short: bool) -> Path:
+    return Path(out_dir) / f"{case_name}{'.short' if short else ''}.end.json"
+
+
+def save_end_states(path: str | Path, case: Case, short: bool, states: Mapping[str, dict]) -> Path:
+    """Write the end states of one run (engine name → end_state) atomically."""
+    path = Path(path)
+    doc = {"format": FORMAT, "format_version": FORMAT_VERSION, "case": case.name,
+           "case_hash": case.file_hash, "param_hash": case.params.digest(), "short": bool(short),
+           "engines": _jsonable(dict(states))}
+    tmp = Path(str(path) + ".tmp")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp.write_text(json.dumps(doc, indent=1))
+    tmp.replace(path)
+    return path
+
+
+def load_end_state(path: str | Path, engine: str, short: bool, where: str) -> tuple[dict, str]:
+    """(end state of `engine`, file hash) from a stored end-state file; InputError if the
+    file is missing, malformed, of the other variant or without that engine."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(where, "start_from", f"no stored end state {path} (run that case first "
+                         f"with the same --out directory{' and --short' if short else ''})")
+    data = path.read_bytes()
+    try:
+        doc = json.loads(data)
+    except json.JSONDecodeError as exc:
+        raise InputError(str(path), "json", str(exc)) from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT or doc.get("format_version") != FORMAT_VERSION:
+        raise InputError(str(path), "format", "not an rsmcheck end-state file of this version")
+    if bool(doc.get("short")) != bool(short):
+        raise InputError(str(path), "short", f"stored by a {'--short' if doc.get('short') else 'full'} run; "
+                         f"this run is {'--short' if short else 'full'}")
+    engines = doc.get("engines", {})
+    if engine not in engines:
+        raise InputError(str(path), "engines", f"no end state of engine '{engine}' "
+                         f"(has: {', '.join(engines) or 'none'})")
+    st = engines[engine]
+    missing = [k for k in RIGID_KEYS if k not in st.get("rigid", {})]
+    if missing:
+        raise InputError(str(path), f"engines.{engine}.rigid", f"missing {', '.join(missing)}")
+    return st, hashlib.sha256(data).hexdigest()
+
+
+# ---------------------------------------------------------------------------------------
+# starting a case from an end state
+# ---------------------------------------------------------------------------------------
+def chained(case: Case, state: Mapping[str, Any]) -> Case:
+    """`case` starting from `state` (an `end_state`)."""
+    return dataclasses.replace(case, start_state=state["rigid"],
+                               start_exact={"state": state.get("exact")})
+
+
+def make_engine(name: str, case: Case, **options):
+    """The engine `name` for `case`, restored to the case's exact start state if any."""
+    from rsmcheck.cli import make_engine as cli_make_engine
+
+    engine = cli_make_engine(name, case, **options)
+    exact = (case.start_exact or {}).get("state")
+    if case.start_state is not None and exact is not None:
+        hook = getattr(engine, "import_state", None)
+        if callable(hook):
+            hook(exact)
+        elif name == "reference":
+            _restore_reference(engine, exact, case)
+    return engine
+
+
+def _restore_reference(engine, exact: Mapping[str, Any], case: Case) -> None:
+    """Put the stored reference ODE state into a fresh reference engine (same layout)."""
+    from reference_model.model import Configuration
+
+    lay = engine.model.layout
+    if "x" not in exact or list(exact.get("n_modes", [])) != list(lay.n_modes):
+        return  # another model size: the rigid start already set by build_initial stands
+    x = np.array(exact["x"], float)
+    if x.shape != (lay.nx,):
+        return
+    rigid = case.start_state
+    if case.orbit and not np.any(x[lay.r_O]):
+        com = np.asarray(rigid["com_I"], float)
+        vcom = np.asarray(rigid["com_vel_I"], float)
+        if case.orbit_spec.centre_on_com:
+            x[0:2] -= com
+            x[lay.nq:lay.nq + 2] -= com
+            x[lay.ns:lay.ns + 2] -= vcom
+            x[lay.ns + lay.nq:lay.ns + lay.nq + 2] -= vcom
+        r, v = orbit_start(case, case.params, float(x[2]))
+        x[lay.r_O] = r
+        x[lay.v_O] = v
+    engine.x = x
+    engine.cfg = Configuration(grasp_on=np.array(exact["grasp_on"], dtype=np.int64),
+                               rho_G=np.array(exact["rho_G"], float),
+                               basis=np.array(exact["basis"], dtype=np.int64))
+    engine.t = 0.0
+
+
+# ---------------------------------------------------------------------------------------
+# running cases
+# ---------------------------------------------------------------------------------------
+ProgressFactory = Callable[[str, str], Any]
+
+
+def run_case(name_or_case: str | Case, engines: Sequence[str], short: bool, out_dir: str | Path,
+             from_dir: str | Path | None = None, progress: ProgressFactory | None = None,
+             chain: bool | None = None, options: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
+    """Run a case (or the mission) with each engine; write DIR/CASE.h5 and its end states.
+
+    A case with `start_from` starts from the stored end state of that case in `from_dir`
+    (default: `out_dir`) when `chain` is True, or when `chain` is None and that file
+    exists; otherwise from its own [initial] (InputError if it has none).  `options`:
+    engine name → keyword options of its constructor.
+    """
+    from rsmcheck.runner import run
+
+    case = name_or_case if isinstance(name_or_case, Case) else load_case(name_or_case)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    options = options or {}
+    if case.phases:
+        return run_mission(case.variant(short), engines, short, out, progress, options)
+    variant = case.variant(short)
+    runs: dict[str, EngineRun] = {}
+    states: dict[str, dict] = {}
+    extra: dict[str, Any] = {"short": bool(short)}
+    for name in engines:
+        start_case = variant
+        if variant.start_from is not None:
+            src = end_state_path(from_dir or out, variant.start_from, short)
+            use = chain if chain is not None else (src.is_file() or not variant.has_initial)
+            if use:
+                st, digest = load_end_state(src, name, short, variant.path)
+                start_case = chained(variant, st)
+                extra.update(start_from=variant.start_from, start_state_file=str(src),
+                             start_state_hash=digest)
+            else:
+                extra.update(start_from="[initial] (stand-alone)")
+        engine = make_engine(name, start_case, **dict(options.get(name, {})))
+        runs[name] = run(engine, start_case, start_case.duration,
+                         progress(name, case.name) if progress else None)
+        states[name] = end_state(engine, start_case.params)
+    path = out / f"{case.name}.h5"
+    write_run(path, runs, case_name=case.name, case_hash=case.file_hash, param_hash=case.params.digest(),
+              extra_attrs=extra)
+    save_end_states(end_state_path(out, case.name, short), case, short, states)
+    return path
+
+
+def run_mission(mission: Case, engines: Sequence[str], short: bool, out: Path,
+                progress: ProgressFactory | None = None,
+                options: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
+    """All phases of `mission` (the variant to run) in sequence, each from the previous
+    one's end state (each phase's short variant with `short`); one run file."""
+    from rsmcheck.runner import run
+
+    from cases.loader import sibling_case
+
+    phases = [load_case(sibling_case(p, Path(mission.path))).variant(short) for p in mission.phases]
+    runs: dict[str, EngineRun] = {}
+    states: dict[str, dict] = {}
+    for name in engines:
+        pieces: list[tuple[float, EngineRun]] = []
+        state = None
+        offset = 0.0
+        for ph in phases:
+            start_case = ph if state is None else chained(ph, state)
+            engine = make_engine(name, start_case, **dict((options or {}).get(name, {})))
+            r = run(engine, start_case, start_case.duration, progress(name, ph.name) if progress else None)
+            pieces.append((offset, r))
+            state = end_state(engine, start_case.params)
+            offset += start_case.duration
+        runs[name] = _concatenate(name, pieces)
+        states[name] = state
+    path = out / f"{mission.name}.h5"
+    write_run(path, runs, case_name=mission.name, case_hash=mission.file_hash,
+              param_hash=mission.params.digest(),
+              extra_attrs={"short": bool(short), "mission_phases": ",".join(mission.phases)})
+    save_end_states(end_state_path(out, mission.name, short), mission, short, states)
+    return path
+
+
+def _concatenate(engine: str, pieces: list[tuple[float, EngineRun]]) -> EngineRun:
+    obs = {}
+    for key in NAMES:
+        parts = []
+        for off, r in pieces:
+            a = np.asarray(r.observables[key], float)
+            parts.append(a + off if key == "time" else a)
+        obs[key] = np.concatenate(parts)
+    events = [Event(e.time + off, e.kind, e.detail) for off, r in pieces for e in r.events]
+    phases = [Phase(p.name, p.t_start + off, p.t_end + off) for off, r in pieces for p in r.phases]
+    solver: dict[str, Any] = {}
+    for off, r in pieces:
+        for k, v in r.solver.items():
+            if k in ("steps", "rejected_steps", "wall_s") and k in solver:
+                solver[k] += v
+            else:
+                solver.setdefault(k, v)
+    return EngineRun(engine=engine, observables=obs, events=events, phases=phases, solver=solver,
+                     versions=pieces[0][1].versions)

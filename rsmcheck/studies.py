@@ -1,0 +1,232 @@
+"""Engine-vs-engine studies behind docs/exudyn.md §6–7 (results in docs/data/*.json).
+
+* `rigid_step_study`: rigid links in both engines (reference with 0 modes, Exudyn with
+  `rigid=True`), every observable of each case, for a sequence of generalized-α steps
+  h = control period / substeps.  The difference is then the integrators' only: the
+  reference (Dormand–Prince 5(4), rtol 1e-9) is checked against itself at rtol 1e-11, and
+  the Exudyn error must fall as h² (generalized-α is second order; the obstacle is the
+  phase of the undamped 92 Hz rotor ripple, docs/exudyn.md §4).
+* `convergence_study`: flexible links, reference with 1…4 modes per link against Exudyn
+  with 2…16 ANCF elements per link, every observable: the difference shrinks as both
+  discretisations converge, down to the integrator floor.
+
+Run: `python -m rsmcheck.studies rigid [CASE…]`, `python -m rsmcheck.studies convergence`.
+The Exudyn numbers come from Exudyn alone (`exudyn_model` never imports the reference);
+this module only compares the two.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from rsmcheck.compare import SCALE_FLOORS, compare_runs
+from rsmcheck.observables import NAMES
+
+DATA_DIR = Path(__file__).resolve().parent.parent / "docs" / "data"
+FEATURE_CASES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", "capture", "release",
+                 "wrist_bistop", "gravity_gradient", "thrust_burn")
+OBSERVABLES = tuple(n for n in NAMES if n != "time")
+#: rigid links: these are identically zero in both engines (nothing to compare)
+RIGID_ZERO = ("link_deflection",)
+
+
+def _run(engine: str, case, duration: float, **options):
+    from rsmcheck.cli import make_engine
+    from rsmcheck.runner import run
+
+    t0 = time.monotonic()
+    r = run(make_engine(engine, case, **options), case, duration)
+    return r, time.monotonic() - t0
+
+
+def _ranges(run) -> dict[str, float]:
+    return {n: float(np.max(np.abs(np.asarray(run.observables[n], float)))) for n in OBSERVABLES}
+
+
+def _errors(name: str, ref, other, names=OBSERVABLES) -> dict[str, dict[str, float]]:
+    rows = compare_runs(name, ref, other, {n: 1.0 for n in names})
+    return {r.observable: {"error": r.error, "scale": r.scale, "worst_time": r.worst_time} for r in rows}
+
+
+def _write(path: Path | None, doc: dict) -> None:
+    if path is None:
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1, allow_nan=False, default=float))
+    tmp.replace(path)
+
+
+#: reference tolerance of the rigid study: the reaction forces feel the rotor twist through
+#: K_m = 40 000 N·m/rad, so a twist error of rtol·1 rad is 4e4·rtol N·m — rtol 1e-9 (the
+#: cases' value) leaves 2e-4 of the reaction force of free_drift; 1e-12 is checked against 1e-11
+REFERENCE_RTOL = 1e-12
+CHECK_RTOL = 1e-11
+
+
+def rigid_step_study(cases: Sequence[str] = FEATURE_CASES, substeps: Sequence[int] = (2, 4, 8, 16, 32, 64),
+                     short: bool = True, duration: float | None = None, out: Path | None = None,
+                     log=None, reference_rtol: float = REFERENCE_RTOL, check_rtol: float = CHECK_RTOL,
+                     exudyn_options: dict | None = None) -> dict[str, Any]:
+    """Relative differences (compare_runs) per case, observable and Exudyn step."""
+    from cases.loader import load_case
+
+    exudyn_options = dict(exudyn_options or {})
+    doc: dict[str, Any] = {"study": "rigid equivalence vs generalized-alpha step", "short": short,
+                           "reference_rtol": reference_rtol, "check_rtol": check_rtol,
+                           "exudyn_options": exudyn_options,
+                           "metric": "max_t max_c |exudyn - reference| / max(max_t |reference|, floor)",
+                           "scale_floors": SCALE_FLOORS, "cases": {}}
+    for name in cases:
+        case = load_case(name).variant(short)
+        T = duration or case.duration
+        ref, w_ref = _run("reference", case, T, n_modes=0, rtol=reference_rtol)
+        coarse, _ = _run("reference", case, T, n_modes=0, rtol=check_rtol)
+        entry = {"duration": T, "control_period": case.solver.control_period,
+                 "reference_wall_s": w_ref, "reference_range": _ranges(ref),
+                 "reference_self_error": {k: v["error"] for k, v in _errors(name, ref, coarse).items()},
+                 "steps": []}
+        for s in substeps:
+            opts = {"stepping": "continuous" if s < 16 else "period", **exudyn_options}
+            ex, w = _run("exudyn", case, T, rigid=True, substeps=s, **opts)
+            errs = _errors(name, ref, ex)
+            entry["steps"].append({"substeps": s, "h": case.solver.control_period / s, "wall_s": w,
+                                   "errors": {k: v["error"] for k, v in errs.items()},
+                                   "worst_time": {k: v["worst_time"] for k, v in errs.items()}})
+            if log:
+                worst = max((v["error"], k) for k, v in errs.items() if k not in RIGID_ZERO)
+                log(f"{name} substeps={s} h={case.solver.control_period / s:.3g} wall={w:.1f}s "
+                    f"worst {worst[1]}={worst[0]:.2e}")
+            doc["cases"][name] = entry
+            _write(out, doc)
+    return doc
+
+
+#: the rigid-equivalence configuration (tests/crosscheck/test_rigid_equivalence.py):
+#: reference rigid at rtol 1e-12; Exudyn rigid, Newton tight enough that its angular
+#: momentum drift (∝ Newton tolerance: 8e-10 at rtol 1e-8, 3e-12 at 1e-12 in 1 s of
+#: closed_squeeze) is negligible, restarted at every change of the held inputs (a change
+#: carried by the algorithmic acceleration costs O(h): first-order convergence in the
+#: controlled cases otherwise), one SolveSteps per control period
+RIGID_REFERENCE = {"n_modes": 0, "rtol": REFERENCE_RTOL}
+RIGID_EXUDYN = {"rigid": True, "stepping": "period", "newton_rtol": 1e-10, "newton_atol": 1e-11,
+                "restart_threshold": 0.0}
+#: generalized-α steps per 1 ms control period per case: from the step study, the coarsest
+#: step at which every observable but the reaction forces reaches 1e-5 (or the finest
+#: affordable one; docs/exudyn.md §6)
+RIGID_SUBSTEPS = {"free_drift": 2, "flex_arm_step": 128, "motor_step": 1024, "closed_squeeze": 128,
+                  "capture": 128, "release": 128, "wrist_bistop": 256, "gravity_gradient": 32,
+                  "thrust_burn": 128}
+RIGID_TOLERANCE = 1e-5
+
+
+def rigid_options(case: str) -> dict:
+    return {**RIGID_EXUDYN, "substeps": RIGID_SUBSTEPS[case]}
+
+
+def rigid_equivalence(cases: Sequence[str] = FEATURE_CASES, out: Path | None = None, log=None) -> dict[str, Any]:
+    """Every observable of every feature case (short) in the rigid-equivalence configuration:
+    relative error, scale (max of reference range and floor), reference range."""
+    from cases.loader import load_case
+
+    doc: dict[str, Any] = {"study": "rigid equivalence", "tolerance": RIGID_TOLERANCE,
+                           "reference_options": RIGID_REFERENCE, "exudyn_options": RIGID_EXUDYN,
+                           "substeps": RIGID_SUBSTEPS, "scale_floors": SCALE_FLOORS, "cases": {}}
+    for name in cases:
+        case = load_case(name).variant(True)
+        ref, w_ref = _run("reference", case, case.duration, **RIGID_REFERENCE)
+        ex, w_ex = _run("exudyn", case, case.duration, **rigid_options(name))
+        rows = compare_runs(name, ref, ex, {n: RIGID_TOLERANCE for n in OBSERVABLES})
+        doc["cases"][name] = {
+            "duration": case.duration, "substeps": RIGID_SUBSTEPS[name],
+            "h": case.solver.control_period / RIGID_SUBSTEPS[name], "wall_s": {"reference": w_ref, "exudyn": w_ex},
+            "observables": {r.observable: {"error": r.error, "scale": r.scale, "reference_range": _ranges(ref)[r.observable],
+                                           "worst_time": r.worst_time, "pass": r.passed} for r in rows}}
+        if log:
+            bad = {r.observable: f"{r.error:.1e}" for r in rows if not r.passed}
+            log(f"{name} substeps={RIGID_SUBSTEPS[name]} wall exudyn {w_ex:.1f}s reference {w_ref:.1f}s; above 1e-5: {bad}")
+        _write(out, doc)
+    return doc
+
+
+def convergence_study(case_name: str = "flex_arm_step", modes: Sequence[int] = (1, 2, 3, 4),
+                      elements: Sequence[int] = (2, 4, 8, 16), short: bool = True, substeps: int | None = None,
+                      duration: float | None = None, out: Path | None = None, log=None,
+                      observables: Sequence[str] = OBSERVABLES) -> dict[str, Any]:
+    """Relative differences per observable for every (reference modes, Exudyn elements)."""
+    from cases.loader import load_case
+    from exudyn_model.engine import SUBSTEPS_DEFAULT
+
+    case = load_case(case_name).variant(short)
+    T = duration or case.duration
+    sub = substeps or SUBSTEPS_DEFAULT
+    doc: dict[str, Any] = {"study": "flexible convergence: reference modes x Exudyn elements",
+                           "case": case_name, "short": short, "duration": T, "substeps": sub,
+                           "h": case.solver.control_period / sub, "modes": list(modes), "elements": list(elements),
+                           "metric": "max_t max_c |exudyn - reference| / max(max_t |reference|, floor)",
+                           "reference": {}, "exudyn": {}, "errors": {}}
+    refs, exus = {}, {}
+    for n in modes:
+        refs[n], w = _run("reference", case, T, n_modes=n)
+        doc["reference"][str(n)] = {"wall_s": w, "range": _ranges(refs[n])}
+    for m in elements:
+        exus[m], w = _run("exudyn", case, T, n_elements=m, substeps=sub,
+                          stepping="continuous" if sub < 16 else "period")
+        doc["exudyn"][str(m)] = {"wall_s": w}
+        for n in modes:
+            errs = _errors(case_name, refs[n], exus[m], observables)
+            doc["errors"][f"{n},{m}"] = {k: v["error"] for k, v in errs.items()}
+            if log:
+                log(f"{case_name} modes={n} elements={m}: deflection {errs.get('link_deflection', {}).get('error', math.nan):.2e}"
+                    f" joint {errs.get('joint_angles', {}).get('error', math.nan):.2e}")
+        _write(out, doc)
+    return doc
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m rsmcheck.studies")
+    sub = p.add_subparsers(dest="study", required=True)
+    r = sub.add_parser("rigid")
+    r.add_argument("cases", nargs="*", default=list(FEATURE_CASES))
+    r.add_argument("--substeps", default="2,4,8,16,32,64")
+    r.add_argument("--duration", type=float)
+    r.add_argument("--constraints", default="index3", choices=("index3", "index2"))
+    r.add_argument("--out")
+    q = sub.add_parser("equivalence")
+    q.add_argument("cases", nargs="*", default=list(FEATURE_CASES))
+    q.add_argument("--out", default=str(DATA_DIR / "rigid_equivalence.json"))
+    c = sub.add_parser("convergence")
+    c.add_argument("case", nargs="?", default="flex_arm_step")
+    c.add_argument("--modes", default="1,2,3,4")
+    c.add_argument("--elements", default="2,4,8,16")
+    c.add_argument("--substeps", type=int)
+    c.add_argument("--duration", type=float)
+    c.add_argument("--out")
+    a = p.parse_args(argv)
+
+    def log(msg: str) -> None:
+        print(msg, flush=True)
+
+    if a.study == "equivalence":
+        rigid_equivalence(a.cases, out=Path(a.out), log=log)
+    elif a.study == "rigid":
+        out = Path(a.out) if a.out else DATA_DIR / f"rigid_steps_{a.constraints}.json"
+        rigid_step_study(a.cases, [int(s) for s in a.substeps.split(",")], duration=a.duration,
+                         out=out, log=log, exudyn_options={"constraints": a.constraints})
+    else:
+        out = Path(a.out) if a.out else DATA_DIR / f"convergence_{a.case}.json"
+        convergence_study(a.case, [int(s) for s in a.modes.split(",")], [int(s) for s in a.elements.split(",")],
+                          substeps=a.substeps, duration=a.duration, out=out, log=log)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,158 @@
+"""rsmcheck.compare: the metrics of the [compare] tables, margins, the relative
+differences with their floors, and the `check` command's exit codes and JSON (SPEC §5)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from cases.loader import CompareSpec, list_cases, load_case
+from rsmcheck.cli import main
+from rsmcheck.compare import (METRICS, SCALE_FLOORS, Check, check_runs, compare_runs, difference,
+                              relative_errors)
+from rsmcheck.observables import NAMES, allocate
+from rsmcheck.store import EngineRun
+
+
+def make_run(engine: str, n: int = 5, **values) -> EngineRun:
+    obs = allocate(n)
+    obs["time"] = np.arange(n) * 0.01
+    for k, v in values.items():
+        obs[k] = np.asarray(v, float).reshape(obs[k].shape)
+    return EngineRun(engine=engine, observables=obs)
+
+
+def test_metrics_match_the_loader():
+    import cases.loader as loader
+
+    assert tuple(METRICS) == tuple(loader.METRICS)
+
+
+def test_max_abs_rms_final():
+    a = np.zeros((5, 6))
+    b = np.zeros((5, 6))
+    b[1, 2] = 3e-3  # the worst sample, component 2
+    b[4, 5] = 1e-3  # the last sample, component 5
+    ref, other = make_run("reference", joint_angles=a), make_run("exudyn", joint_angles=b)
+    err, t, c = difference(ref, other, "joint_angles", "max_abs")
+    assert (err, t, c) == (pytest.approx(3e-3), pytest.approx(0.01), 2)
+    err, t, c = difference(ref, other, "joint_angles", "final")
+    assert (err, t, c) == (pytest.approx(1e-3), pytest.approx(0.04), 5)
+    err, t, c = difference(ref, other, "joint_angles", "rms")
+    assert err == pytest.approx(3e-3 / math.sqrt(5)) and c == 2 and math.isnan(t)
+
+
+def test_scalar_observable_and_non_finite():
+    ref = make_run("reference", ee2_speed=[0, 1, 2, 3, 4])
+    other = make_run("exudyn", ee2_speed=[0, 1, 2, np.nan, 4])
+    err, t, _ = difference(ref, other, "ee2_speed")
+    assert err == math.inf and t == pytest.approx(0.03)
+
+
+def test_unknown_metric_and_observable():
+    ref, other = make_run("reference"), make_run("exudyn")
+    with pytest.raises(ValueError, match="metric"):
+        difference(ref, other, "energy", "mean")
+    with pytest.raises(ValueError, match="observable"):
+        difference(ref, other, "torque_ripple")
+
+
+def test_different_sampling_is_refused():
+    with pytest.raises(ValueError, match="same times"):
+        difference(make_run("reference", n=5), make_run("exudyn", n=6), "energy")
+
+
+def test_check_row_margin_pass_and_json():
+    row = Check("c", "energy", error=2e-3, tolerance=1e-2, metric="max_abs", why="w")
+    assert row.passed and row.margin == pytest.approx(5.0)
+    d = row.as_dict()
+    for key in ("case", "observable", "error", "tolerance", "margin", "pass"):
+        assert key in d
+    assert json.loads(json.dumps(d))["pass"] is True
+    bad = Check("c", "energy", error=math.inf, tolerance=1e-2)
+    assert not bad.passed and bad.margin == 0.0
+    assert json.dumps(bad.as_dict(), allow_nan=False)  # inf/NaN are spelled out for JSON
+    exact = Check("c", "energy", error=0.0, tolerance=1e-2)
+    assert exact.passed and json.dumps(exact.as_dict(), allow_nan=False)
+
+
+def test_check_runs_uses_the_case_table():
+    case = load_case("release")
+    spec = (CompareSpec("grasp_state", 0.5, "flags", "final"), CompareSpec("momentum_I", 1e-6, "conserved"))
+    case = dataclasses.replace(case, compare=spec)
+    g_ref = np.array([[1, 1], [1, 1], [1, 0], [1, 0], [1, 0]])
+    g_exu = np.array([[1, 1], [1, 0], [1, 0], [1, 0], [1, 0]])  # released one sample early
+    ref = make_run("reference", grasp_state=g_ref, momentum_I=np.full((5, 3), 2.0))
+    exu = make_run("exudyn", grasp_state=g_exu, momentum_I=np.full((5, 3), 2.0 + 2e-6))
+    rows = {r.observable: r for r in check_runs(case, ref, exu)}
+    assert rows["grasp_state"].passed and rows["grasp_state"].error == 0.0  # final: both released
+    assert not rows["momentum_I"].passed and rows["momentum_I"].error == pytest.approx(2e-6)
+    assert rows["momentum_I"].reference_range == pytest.approx(2.0)
+    assert rows["momentum_I"].why == "conserved"
+
+
+def test_relative_differences_use_the_floors():
+    ref = make_run("reference", reaction_forces_I=np.zeros((5, 4)), energy=np.full((5, 3), 10.0))
+    exu = make_run("exudyn", reaction_forces_I=np.full((5, 4), 1e-4), energy=np.full((5, 3), 10.001))
+    rel = relative_errors("x", ref, exu, ["reaction_forces_I", "energy"])
+    assert rel["reaction_forces_I"] == pytest.approx(1e-4 / SCALE_FLOORS["reaction_forces_I"])
+    assert rel["energy"] == pytest.approx(1e-4)
+    rows = compare_runs("x", ref, exu, {"energy": 1e-5}, t_from=0.02)
+    assert rows[0].worst_time >= 0.02 and not rows[0].passed
+    assert set(SCALE_FLOORS) == set(NAMES) - {"time"}
+
+
+def test_every_compare_entry_names_a_metric_we_know():
+    for path in list_cases():
+        case = load_case(path)
+        for variant in (case, case.variant(True)):
+            for spec in variant.compare:
+                assert spec.metric in METRICS and spec.tolerance > 0 and spec.why.strip()
+
+
+# ---- the command line ----------------------------------------------------------------
+def test_check_without_compare_table_is_not_a_silent_pass(capsys):
+    """free_drift has no [compare] table: said explicitly, nothing compared → exit 1."""
+    code = main(["check", "free_drift", "--short"])
+    out, err = capsys.readouterr()
+    assert code == 1
+    assert "free_drift: NOT CHECKED" in out and "no [compare] table" in out
+    assert "nothing was compared" in err
+
+
+def test_check_json_without_compare_table(capsys):
+    code = main(["check", "free_drift", "--short", "--json"])
+    out, _ = capsys.readouterr()
+    doc = json.loads(out)
+    assert code == 1 and doc["checks"] == [] and doc["skipped"][0]["case"] == "free_drift"
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["check", "no_such_case"], "case"),
+    (["check", "flex_arm_step", "--exudyn", "substeps"], "substeps"),
+    (["check", "flex_arm_step", "--exudyn", "warp=9"], "warp"),
+    (["check", "flex_arm_step", "--reference", "n_elements=4"], "n_elements"),
+])
+def test_check_bad_input_exits_2(argv, field, capsys):
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert len(err.splitlines()) == 1 and field in err and "Traceback" not in err
+
+
+@pytest.mark.crosscheck
+def test_check_runs_both_engines():
+    """A real (serial) check of the shortest case, flex_arm_step cut to its first 0.1 s:
+    one row per [compare] entry with the SPEC §5 keys (pass/fail: tests/crosscheck)."""
+    import rsmcheck.compare as cmp
+
+    case = load_case("flex_arm_step").variant(True)
+    res = cmp.check_case(dataclasses.replace(case, duration=0.1, short=None), short=False, parallel=False)
+    assert [r.observable for r in res.rows] == [s.observable for s in case.compare]
+    for r in res.rows:
+        assert math.isfinite(r.error) and r.reference_range > 0
+        assert set(r.as_dict()) >= {"case", "observable", "error", "tolerance", "margin", "pass"}
+    assert res.runs["reference"].observables["time"][-1] == pytest.approx(0.1)

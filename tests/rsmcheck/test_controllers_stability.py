@@ -1,0 +1,133 @@
+"""Why the two gain sets of phase 1 behave as Fig. 6 shows: eigenvalues of the linearised
+sampled-data closed loop (reference model + the shared controller, 1 ms zero-order hold)
+at the hold configuration of p1_transport.
+
+The model is linearised by central differences of `reference_model.core.rhs`, the
+controller's proportional part by central differences of `ProgrammeController` applied
+to the sensors of the perturbed state; the joint-rate filter of eq. (14) is a discrete
+state of its own.  Rigid-body drift modes (zero eigenvalues of the free-floating system)
+are left out.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from cases.loader import Segment, load_case
+from reference_model import core
+from reference_model.engine import ReferenceEngine
+from rsmcheck.controllers import ProgrammeController
+
+#: the hold configuration of p1: arm 1 at (4.0, 0.6) m, φ = 0 holding the target, arm 2 at
+#: (3.8, −0.6) m, φ = 0 (prepared for capture)
+HOLD_JOINTS = (60.0, -120.0, 60.0, -64.3207, 128.6414, -64.3207)
+
+
+def closed_loop_exponents(case_name: str) -> np.ndarray:
+    """Continuous-equivalent exponents log(λ)/T of the closed loop's discrete eigenvalues."""
+    case = load_case(case_name)
+    ini = dataclasses.replace(case.initial, joint_angles_deg=HOLD_JOINTS)
+    case = dataclasses.replace(case, initial=ini)
+    spec = case.controller
+    T = case.solver.control_period
+    engine = ReferenceEngine(case)
+    lay = engine.model.layout
+    ns = lay.ns
+    nx = 2 * ns
+    x0 = engine.x.copy()
+    args = engine.model.core_args(engine.cfg)
+
+    def f(x, u):
+        full = x0.copy()
+        full[:nx] = x
+        return core.rhs(full, u, *args)[:nx]
+
+    p_only = dataclasses.replace(spec, arm1=dataclasses.replace(spec.arm1, kd=(0.0, 0.0, 0.0)),
+                                 arm2=dataclasses.replace(spec.arm2, kd=(0.0, 0.0, 0.0)))
+    ctl = ProgrammeController(p_only, case.params, T)
+    s0 = engine.sensors()
+    ctl.start(s0)
+    ctl.enter(Segment(name="hold", duration=1.0), s0)
+
+    def control(x):
+        engine.x = x0.copy()
+        engine.x[:nx] = x
+        u = ctl(engine.sensors())
+        out = np.zeros(core.N_INPUTS)
+        out[:6] = u.tau_m
+        out[6] = u.tau_B
+        return out
+
+    xe = x0[:nx].copy()
+    u0 = np.zeros(core.N_INPUTS)
+    A = np.zeros((nx, nx))
+    Kp = np.zeros((7, nx))
+    h = 1e-7
+    for i in range(nx):
+        dx = np.zeros(nx)
+        dx[i] = h
+        A[:, i] = (f(xe + dx, u0) - f(xe - dx, u0)) / (2 * h)
+        Kp[:, i] = -(control(xe + dx)[:7] - control(xe - dx)[:7]) / (2 * h)
+    engine.x = x0
+    B = np.zeros((nx, 7))
+    for j in range(7):
+        du = np.zeros(core.N_INPUTS)
+        du[j] = 1e-3
+        B[:, j] = (f(xe, u0 + du) - f(xe, u0 - du)) / 2e-3
+    M = np.zeros((nx + 7, nx + 7))
+    M[:nx, :nx] = A * T
+    M[:nx, nx:] = B * T
+    E = expm(M)
+    Phi, Gam = E[:nx, :nx], E[:nx, nx:]
+    # joint-rate estimate r_k = (1 − a) r_{k−1} + a θ̇_J,k;  τ_k = −K_p(x_k) − K_d r_k
+    C = np.zeros((6, nx))
+    for j in range(6):
+        C[j, ns + 3 + j] = 1.0
+    Kd = np.zeros((7, 6))
+    Kd[:6, :6] = np.diag([*spec.arm1.kd, *spec.arm2.kd])
+    fc = spec.rate_filter_hz
+    a = 1.0 - math.exp(-2 * math.pi * fc * T) if fc > 0 else 1.0
+    F = np.zeros((nx + 6, nx + 6))
+    F[:nx, :nx] = Phi + Gam @ (-Kp - a * Kd @ C)
+    F[:nx, nx:] = Gam @ (-(1 - a) * Kd)
+    F[nx:, :nx] = a * C
+    F[nx:, nx:] = (1 - a) * np.eye(6)
+    lam = np.linalg.eigvals(F).astype(complex)
+    s = np.log(lam[np.abs(lam) > 0]) / T
+    return s[np.abs(s) > 1e-4]
+
+
+@functools.lru_cache(maxsize=None)
+def exponents(case_name: str) -> np.ndarray:
+    return closed_loop_exponents(case_name)
+
+
+def test_flexibility_aware_gains_give_a_stable_loop():
+    s = exponents("p1_transport")
+    assert np.max(s.real) < 0.0
+    low = s[np.abs(s.imag) < 2 * math.pi * 5.0]  # the arm modes below 5 Hz
+    assert np.max(low.real) < -0.1  # settles within tens of seconds (Fig. 6b)
+
+
+def test_rigid_model_gains_destabilise_the_rotor_modes():
+    s = exponents("p1_rigid_gains")
+    worst = s[np.argmax(s.real)]
+    assert worst.real > 0.1  # grows by e within ~10 s (Fig. 6a)
+    f = abs(worst.imag) / (2 * math.pi)
+    assert 85.0 < f < 100.0  # the rotor-joint mode sqrt(K_m/B_m)/2π ≈ 92 Hz
+    # ... while its arm modes are as well damped as the flexibility-aware set's
+    low = s[np.abs(s.imag) < 2 * math.pi * 5.0]
+    assert np.max(low.real) < -0.1
+
+
+def test_the_two_sets_differ_only_in_the_rate_feedback():
+    a, b = load_case("p1_transport"), load_case("p1_rigid_gains")
+    assert a.controller.arm1.kp == b.controller.arm1.kp and a.controller.base == b.controller.base
+    assert a.segments == b.segments and a.initial == b.initial
+    assert b.controller.rate_filter_hz > 10 * a.controller.rate_filter_hz
