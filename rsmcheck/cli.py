@@ -56,20 +56,17 @@ def make_engine(name: str, case, **options):
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from cases.loader import load_case
-    from rsmcheck.runner import run, terminal_progress
-    from rsmcheck.store import write_run
+    from rsmcheck.chain import run_case
+    from rsmcheck.runner import terminal_progress
 
     cases = [load_case(name) for name in args.case]  # validate every case before running any
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for case in cases:
-        runs = {}
-        for name in _engine_names(args.engine):
-            engine = make_engine(name, case)
-            runs[name] = run(engine, case, case.run_duration(args.short), terminal_progress(name, case.name))
-        path = out / f"{case.name}.h5"
-        write_run(path, runs, case_name=case.name, case_hash=case.file_hash, param_hash=case.params.digest())
-        print(f"{case.name}: wrote {path} ({', '.join(runs)})")
+        path = run_case(case, _engine_names(args.engine), args.short, out,
+                        from_dir=Path(args.from_dir) if args.from_dir else None,
+                        progress=terminal_progress, chain=False if args.standalone else None)
+        print(f"{case.name}: wrote {path} ({args.engine})")
     return 0
 
 
@@ -221,6 +218,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
+    p.add_argument("--from", dest="from_dir", default=None,
+                   help="folder with the predecessors' end states of chained phases (default: --out)")
+    p.add_argument("--standalone", action="store_true",
+                   help="start a phase from its own [initial] even where a predecessor's end state exists")
     p = sub.add_parser("check", help="run the reference and Exudyn, compare by the case's [compare] table")
     p.add_argument("case", nargs="+", help="case name (cases/NAME.toml) or path to a case file")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")

@@ -133,7 +133,8 @@ def test_run_free_drift_short_writes_a_readable_run_file(tmp_path, capsys):
     captured = capsys.readouterr()
     path = out / "free_drift.h5"
     assert str(path) in captured.out
-    assert sorted(p.name for p in files_under(out)) == ["free_drift.h5"]  # no .tmp left over
+    # the run file and the end state a chained phase starts from; no .tmp left over
+    assert sorted(p.name for p in files_under(out)) == ["free_drift.h5", "free_drift.short.end.json"]
     runs, attrs = read_run(path)
     assert attrs["case_name"] == "free_drift"
     from cases.loader import load_case

@@ -16,7 +16,6 @@ import functools
 import math
 
 import numpy as np
-import pytest
 from scipy.linalg import expm
 
 from cases.loader import Segment, load_case
