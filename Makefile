@@ -11,7 +11,7 @@ PYTEST_ARGS ?=
 PACKAGE_INITS := $(wildcard rsmcheck/__init__.py reference_model/__init__.py \
 	exudyn_model/__init__.py pinocchio_check/__init__.py cases/__init__.py report/__init__.py)
 
-.PHONY: venv test report clean
+.PHONY: venv test study report clean
 
 venv: $(STAMP)
 
@@ -21,15 +21,19 @@ $(STAMP): pyproject.toml $(PACKAGE_INITS)
 	touch $(STAMP)
 
 # pytest exit code 5 = no tests collected: make fails (as for any non-zero code) and says why.
+# Everything but the `study` tests (Exudyn at microsecond steps, tens of minutes: `make study`).
 test: venv
-	@status=0; $(VPY) -m pytest $(PYTEST_ARGS) || status=$$?; \
+	@status=0; $(VPY) -m pytest -m "not study" $(PYTEST_ARGS) || status=$$?; \
 	if [ $$status -eq 5 ]; then echo "make test: FAILED: pytest collected no tests (exit 5)" >&2; \
 	elif [ $$status -ne 0 ]; then echo "make test: FAILED: pytest exited with $$status" >&2; fi; \
 	exit $$status
 
+study: venv
+	$(VPY) -m pytest -m study $(PYTEST_ARGS)
+
 report: venv
 	mkdir -p out
-	$(VENV)/bin/rsmcheck report --out out/report.html
+	$(VENV)/bin/rsmcheck report --engine all --short --out out/report.html
 
 clean:
 	rm -rf out build *.egg-info .pytest_cache

@@ -26,8 +26,9 @@ import numpy as np
 
 from cases.loader import Case, list_cases, load_case
 from report.figures import case_figure, conservation_figure
-from rsmcheck.runner import run, terminal_progress
-from rsmcheck.store import EngineRun, git_commit, write_run
+from rsmcheck.runner import terminal_progress
+from rsmcheck.errors import InputError, SimulationDiverged
+from rsmcheck.store import EngineRun, git_commit, read_run
 
 CSS = """
 body{font-family:system-ui,sans-serif;margin:2em;max-width:1300px;color:#222}
@@ -197,9 +198,11 @@ def _case_section(case: Case, runs: dict[str, EngineRun], short: bool) -> str:
     return "\n".join(parts)
 
 
-def build_report(out: Path, engines: Sequence[str], short: bool, case_names: Sequence[str] | None = None) -> Path:
-    """Run the cases through `engines`, store DIR/CASE.h5 next to the page, write the page."""
-    from rsmcheck.cli import make_engine
+def build_report(out: Path, engines: Sequence[str], short: bool,
+                 case_names: Sequence[str] | None = None) -> tuple[Path, list[str]]:
+    """Run the cases through `engines`, store DIR/runs/CASE.h5, write the page; returns the
+    page's path and the cases that did not run (shown on the page in red)."""
+    from rsmcheck.chain import run_case
 
     cases = [load_case(n) for n in case_names] if case_names else [load_case(p) for p in list_cases()]
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -207,13 +210,17 @@ def build_report(out: Path, engines: Sequence[str], short: bool, case_names: Seq
     run_dir.mkdir(exist_ok=True)
     sections = []
     started = time.monotonic()
+    failures = []
     for case in cases:
-        runs = {}
-        for name in engines:
-            engine = make_engine(name, case)
-            runs[name] = run(engine, case, case.run_duration(short), terminal_progress(name, case.name))
-        write_run(run_dir / f"{case.name}.h5", runs, case_name=case.name, case_hash=case.file_hash,
-                  param_hash=case.params.digest())
+        try:
+            # chained phases start from their predecessor's end state in run_dir when it exists
+            path = run_case(case, engines, short, run_dir, progress=terminal_progress)
+            runs, _ = read_run(path)
+        except (SimulationDiverged, InputError, ValueError, RuntimeError) as exc:
+            failures.append(case.name)
+            sections.append(f"<h2 id='{case.name}'>{html.escape(case.name)}</h2>"
+                            f"<p class='fail'>did not run: {html.escape(str(exc))}</p>")
+            continue
         sections.append(_case_section(case, runs, short))
     pin = _pinocchio_rows()
     pin_rows = [[html.escape(str(c.get("quantity"))), str(c.get("chain")), str(c.get("holding", "")),
@@ -244,4 +251,4 @@ def build_report(out: Path, engines: Sequence[str], short: bool, case_names: Seq
     finally:
         if tmp.exists():
             tmp.unlink()
-    return out
+    return out, failures

@@ -73,9 +73,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from report.build import build_report
 
-    path = build_report(Path(args.out), _engine_names(args.engine), args.short, args.cases or None)
-    print(f"wrote {path}")
-    return 0
+    path, failures = build_report(Path(args.out), _engine_names(args.engine), args.short, args.cases or None)
+    print(f"wrote {path}" + (f"; did not run: {', '.join(failures)}" if failures else ""))
+    return 1 if failures else 0
 
 
 def _engine_options(pairs: Sequence[str] | None, engine: str) -> dict:

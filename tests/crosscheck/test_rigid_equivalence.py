@@ -64,6 +64,7 @@ def _params():
 
 @pytest.mark.crosscheck
 @pytest.mark.slow
+@pytest.mark.study
 @pytest.mark.parametrize("case,observable", _params())
 def test_rigid_equivalence(case, observable, run_pool):
     ref = run_pool.get(case, "reference", True, **RIGID_REFERENCE)
