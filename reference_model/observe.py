@@ -143,7 +143,7 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
     lay = model.layout
     prm = model.params
     q, qd = x[lay.q], x[lay.qd]
-    XT, XTd = x[lay.target], x[lay.target_d]
+    XT = x[lay.target]
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
     _, Rc = core.solve_constrained(Mg, f, A, Bs)
     th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = model.kinematics(q, qd, cfg)

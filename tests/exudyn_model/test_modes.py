@@ -24,22 +24,9 @@ pytestmark = pytest.mark.crosscheck
 def reference_frequencies(case, n_modes: int, n: int) -> np.ndarray:
     """Frequencies of the reference linearised by central differences of its ODE (the
     oscillatory eigenvalues; Baumgarte's real eigenvalues −α, −β drop out)."""
-    from reference_model import core
-    from reference_model.engine import ReferenceEngine
+    from rsmcheck.modes import reference_coupled_hz
 
-    ref = ReferenceEngine(case, n_modes=n_modes)
-    model, x0, cfg = ref.model, ref.x.copy(), ref.cfg
-    m = 2 * model.layout.ns
-    u = np.zeros(core.N_INPUTS)
-    jac = np.zeros((m, m))
-    for i in range(m):
-        e = 1e-7 * max(1.0, abs(x0[i]))
-        xp, xm = x0.copy(), x0.copy()
-        xp[i] += e
-        xm[i] -= e
-        jac[:, i] = (model.rhs(xp, u, cfg)[:m] - model.rhs(xm, u, cfg)[:m]) / (2 * e)
-    lam = np.linalg.eigvals(jac)
-    return np.sort(np.abs(lam.imag[lam.imag > 2 * np.pi]))[:n] / (2 * np.pi)
+    return reference_coupled_hz(case, n=n, n_modes=n_modes)
 
 
 @pytest.fixture(scope="module", params=["free_drift", "closed_squeeze"])
