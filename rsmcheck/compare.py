@@ -111,8 +111,23 @@ def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = 
 # ---------------------------------------------------------------------------------------
 # case checks: the [compare] table of a case file
 # ---------------------------------------------------------------------------------------
+class _Verdict:
+    """margin = tolerance / error (> 1 passes) and pass, for rows with error and tolerance."""
+
+    error: float
+    tolerance: float
+
+    @property
+    def margin(self) -> float:
+        return self.tolerance / self.error if self.error > 0 else float("inf")
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.error <= self.tolerance)
+
+
 @dataclass(frozen=True)
-class Check:
+class Check(_Verdict):
     """One row of `rsmcheck check`: one observable of one case, by the case's own rule."""
 
     case: str
@@ -124,14 +139,6 @@ class Check:
     worst_time: float = float("nan")
     worst_component: int = 0
     reference_range: float = 0.0  # max_t ‖b(t)‖_∞: the size of the observable in the reference
-
-    @property
-    def margin(self) -> float:
-        return self.tolerance / self.error if self.error > 0 else float("inf")
-
-    @property
-    def passed(self) -> bool:
-        return bool(self.error <= self.tolerance)
 
     def as_dict(self) -> dict[str, Any]:
         return {"case": self.case, "observable": self.observable, "error": _finite(self.error),
@@ -258,7 +265,7 @@ def check_case(case, short: bool, options: Mapping[str, Mapping[str, Any]] | Non
 # relative differences: every observable, in units of its size
 # ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class Comparison:
+class Comparison(_Verdict):
     case: str
     observable: str
     error: float
@@ -266,14 +273,6 @@ class Comparison:
     scale: float
     worst_time: float
     worst_component: int
-
-    @property
-    def margin(self) -> float:
-        return self.tolerance / self.error if self.error > 0 else float("inf")
-
-    @property
-    def passed(self) -> bool:
-        return bool(self.error <= self.tolerance)
 
     def as_dict(self) -> dict:
         return {"case": self.case, "observable": self.observable, "error": self.error,
