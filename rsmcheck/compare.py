@@ -192,30 +192,18 @@ def _run_one(engine: str, case, duration: float, options: Mapping[str, Any]) -> 
     return run(make_engine(engine, case, **dict(options)), case, duration)
 
 
-def _run_child(engine: str, case, duration: float, options: Mapping[str, Any]):
-    """`_run_one` in a worker process: ("ok", run) or the error's type and arguments
-    (rsmcheck.errors' exceptions do not survive pickling with their arguments)."""
-    from rsmcheck.errors import InputError, SimulationDiverged
+def _run_child(engine: str, case, duration: float, options: Mapping[str, Any]) -> EngineRun:
+    """`_run_one` in a worker process; a bad engine option value becomes an InputError
+    (rsmcheck.errors' exceptions pickle with their arguments, so they reach the parent)."""
+    from rsmcheck.errors import InputError
 
     try:
-        return "ok", _run_one(engine, case, duration, options)
-    except SimulationDiverged as exc:
-        return "diverged", (exc.engine, exc.time, exc.phase, exc.quantity, exc.value)
-    except InputError as exc:
-        return "input", (exc.where, exc.field, exc.reason)
-    except (TypeError, ValueError) as exc:  # a bad engine option value
-        return "input", (f"--{engine}", ",".join(f"{k}={v}" for k, v in options.items()) or "options", str(exc))
-
-
-def _unpack(result):
-    from rsmcheck.errors import InputError, SimulationDiverged
-
-    kind, value = result
-    if kind == "diverged":
-        raise SimulationDiverged(*value)
-    if kind == "input":
-        raise InputError(*value)
-    return value
+        return _run_one(engine, case, duration, options)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"--{engine}", ",".join(f"{k}={v}" for k, v in options.items()) or "options",
+                         str(exc)) from None
 
 
 def run_pair(case, options: Mapping[str, Mapping[str, Any]] | None = None,
@@ -225,13 +213,13 @@ def run_pair(case, options: Mapping[str, Mapping[str, Any]] | None = None,
     options = options or {}
     engines = ("reference", "exudyn")
     if not parallel:
-        return {e: _unpack(_run_child(e, case, case.duration, dict(options.get(e, {})))) for e in engines}
+        return {e: _run_child(e, case, case.duration, dict(options.get(e, {}))) for e in engines}
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = {e: pool.submit(_run_child, e, case, case.duration, dict(options.get(e, {}))) for e in engines}
-        return {e: _unpack(f.result()) for e, f in futures.items()}
+        return {e: f.result() for e, f in futures.items()}
 
 
 def check_case(case, short: bool, options: Mapping[str, Mapping[str, Any]] | None = None,

@@ -18,6 +18,10 @@ class InputError(ValueError):
         self.reason = reason
         super().__init__(f"{where}: {field}: {reason}")
 
+    def __reduce__(self):
+        # rebuilt from the constructor's arguments (the default pickles `args`, one string)
+        return (type(self), (self.where, self.field, self.reason))
+
 
 class SimulationDiverged(RuntimeError):
     """A simulation left the range where its results mean anything."""
@@ -32,3 +36,6 @@ class SimulationDiverged(RuntimeError):
             f"{engine}: diverged at t = {time:.6g} s in phase '{phase}': "
             f"{quantity} = {value:.6g}"
         )
+
+    def __reduce__(self):
+        return (type(self), (self.engine, self.time, self.phase, self.quantity, self.value))
