@@ -292,6 +292,9 @@ class ExudynEngine:
                 self.field_nodes += item.nodes if not item.rigid else [item.frame_node]
             self.carrier = mbs.AddObject(ObjectGenericODE2(nodeNumbers=self.field_nodes))
         mbs.Assemble()
+        if self.field:
+            self._thrust_inertia = _ThrustInertia(self.carrier, self.base_node, float(init.base_pose[2]))
+            mbs.SetPreStepUserFunction(self._thrust_inertia)
 
     def _rigid_link(self, i, pin, th, vel, om, terminal, basis) -> LinkItems:
         mbs, p = self.mbs, self.params
@@ -497,14 +500,13 @@ class ExudynEngine:
         thrust = held[2]
         if thrust != 0.0 and not self.field:
             raise SimulationDiverged(self.name, self.t, "?", "thrust without field (build with field=True)", thrust)
-        a_thr = np.zeros(2)
         if self.field:
+            # mass, tidal field: held over the interval; thrust inertia: every step (_ThrustInertia)
             q, _ = self._qv()
-            m_sys = self._com(q)[1]
-            thB = q[self.i_base[2]]
-            a_thr = thrust / m_sys * np.array([math.cos(thB), math.sin(thB)])
             mbs.SetObjectParameter(self.base, "mass", self._mass_base())
-            mbs.SetObjectParameter(self.carrier, "forceVector", self._field_forces(q, -a_thr))
+            self._thrust_inertia.hold(self._tidal_forces(q), self._uniform_field_matrix(),
+                                      thrust / self._com(q)[1], self.t)
+            mbs.SetObjectParameter(self.carrier, "forceVector", self._thrust_inertia.forces(q[self.i_base[2]]))
         if held != self._held:
             for j in range(6):
                 mbs.SetLoadParameter(self.motor_loads[j], "load", held[0][j])
@@ -547,7 +549,7 @@ class ExudynEngine:
                                      "Newton failed (step reduction exhausted)" if ok is False else f"ODE2[{bad}]",
                                      float(q[bad]) if bad >= 0 else float("nan"))
         if self.field:
-            self._advance_orbit(t_next - self.t, a_thr)
+            self._advance_orbit(t_next - self.t, self._thrust_inertia.mean_acceleration(t_next - self.t))
             p = self.params.actuators
             self.m_used += thrust / (p.isp * p.g0) * (t_next - self.t)
         self.t = t_next
@@ -578,38 +580,46 @@ class ExudynEngine:
         self.r_O = r + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
         self.v_O = v + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
 
-    def _field_forces(self, q, a_unif) -> np.ndarray:
-        """Generalised forces of the tidal field (exact, at the current positions) and of the
-        uniform field a_unif on the carrier's coordinates, ordered as `field_nodes`."""
+    def _uniform_field_matrix(self) -> np.ndarray:
+        """U with U a = generalised forces of a uniform acceleration field a on every mass
+        element (physics.md §5: M_X[:, R] a), carrier coordinates × 2."""
+        p = self.params
+        blocks = [np.array([[m, 0.0], [0.0, m], [0.0, 0.0]]) for m in (self._mass_base(), p.target.mass)]
+        for it in self.links:
+            if it.rigid:
+                # about the link COM a uniform field has no moment
+                blocks.append(np.array([[p.link.mass, 0.0], [0.0, p.link.mass], [0.0, 0.0]]))
+            else:
+                blocks.append(self.first.T)
+        return np.vstack(blocks)
+
+    def _tidal_forces(self, q) -> np.ndarray:
+        """Generalised forces of the exact tidal field at the current positions (zero without
+        an orbit), carrier coordinates."""
         p = self.params
         mu = p.orbit.mu
         out = []
-        for n, (m, pos) in zip((self.base_node, self.target_node),
-                               ((self._mass_base(), q[self.i_base[:2]]), (p.target.mass, q[self.i_target[:2]]))):
-            g = a_unif.copy()
-            if self.orbit:
-                g = g + fld.tidal(mu, self.r_O, pos)
+        for m, pos in ((self._mass_base(), q[self.i_base[:2]]), (p.target.mass, q[self.i_target[:2]])):
+            g = fld.tidal(mu, self.r_O, pos) if self.orbit else np.zeros(2)
             out.append(np.array([m * g[0], m * g[1], 0.0]))
         for it in self.links:
             qi = q[it.coords]
             if it.rigid:
-                L = p.link.length
-                xs, ws = links.gauss(8, -0.5 * L, 0.5 * L)
-                e = np.array([math.cos(qi[2]), math.sin(qi[2])])
-                pts = qi[:2] + np.outer(xs, e)
-                g = np.tile(a_unif, (len(xs), 1))
+                out.append(np.zeros(3))
                 if self.orbit:
-                    g = g + fld.tidal(mu, self.r_O, pts)
-                f = p.link.rho_a * ws[:, None] * g
-                lever = pts - qi[:2]
-                out.append(np.array([f[:, 0].sum(), f[:, 1].sum(),
-                                     np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
+                    L = p.link.length
+                    xs, ws = links.gauss(8, -0.5 * L, 0.5 * L)
+                    e = np.array([math.cos(qi[2]), math.sin(qi[2])])
+                    pts = qi[:2] + np.outer(xs, e)
+                    f = p.link.rho_a * ws[:, None] * fld.tidal(mu, self.r_O, pts)
+                    lever = pts - qi[:2]
+                    out[-1] = np.array([f[:, 0].sum(), f[:, 1].sum(),
+                                        np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])])
             else:
-                Q = self.first.T @ a_unif
+                Q = np.zeros(len(qi))
                 if self.orbit:
                     xs, ws, rs = self.mesh.points(qi, N_GAUSS_FIELD)
-                    g = fld.tidal(mu, self.r_O, rs)
-                    Q = Q + self._distributed(g * (p.link.rho_a * ws)[:, None])
+                    Q = self._distributed(fld.tidal(mu, self.r_O, rs) * (p.link.rho_a * ws)[:, None])
                 out.append(Q)
         return np.concatenate(out)
 
@@ -849,6 +859,52 @@ class ExudynEngine:
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "exudyn", "numpy")
+
+
+class _ThrustInertia:
+    """The uniform thrust-inertia field −(T/m_sys) A(θ_B) e_x of physics.md §5, evaluated at
+    every time step (a `PreStepUserFunction`): its direction follows the base attitude
+    within the control period, as in the reference, where it is part of the right-hand
+    side.  θ_B is taken at the end of the step (θ_B + h ω_B from the start of the step:
+    generalized-α balances forces at t_n+1), so the direction lags by O(h²).  The tidal
+    part and the masses are held over the control interval (`hold`).
+
+    Holds no reference to the engine (the paused solver thread keeps this object alive).
+    """
+
+    def __init__(self, carrier: int, base_node: int, theta_ref: float):
+        self.carrier, self.base_node, self.theta_ref = carrier, base_node, theta_ref
+        self.q_held = np.zeros(0)
+        self.U = np.zeros((0, 2))
+        self.accel = 0.0  # T/m_sys [m/s²]
+        self.impulse = np.zeros(2)  # ∫ (T/m_sys) A(θ_B) e_x dt over the current interval [m/s]
+        self.t_last = 0.0
+
+    def hold(self, tidal: np.ndarray, U: np.ndarray, accel: float, t_start: float) -> None:
+        self.q_held, self.U, self.accel = tidal, U, float(accel)
+        self.impulse = np.zeros(2)
+        self.t_last = t_start
+
+    def forces(self, theta_b: float) -> np.ndarray:
+        a = self.accel * np.array([math.cos(theta_b), math.sin(theta_b)])
+        return self.q_held - self.U @ a
+
+    def __call__(self, mbs, t: float) -> bool:
+        if self.accel == 0.0:
+            return True
+        h = t - self.t_last  # t: the end of the step about to be taken (the state: its start)
+        self.t_last = t
+        q = mbs.GetNodeOutput(self.base_node, exu.OutputVariableType.Coordinates)
+        v = mbs.GetNodeOutput(self.base_node, exu.OutputVariableType.Coordinates_t)
+        theta = self.theta_ref + q[2] + h * v[2]
+        mbs.SetObjectParameter(self.carrier, "forceVector", self.forces(theta))
+        th_mid = self.theta_ref + q[2] + 0.5 * h * v[2]
+        self.impulse += h * self.accel * np.array([math.cos(th_mid), math.sin(th_mid)])
+        return True
+
+    def mean_acceleration(self, span: float) -> np.ndarray:
+        """The thrust acceleration of O averaged over the interval just integrated."""
+        return self.impulse / span if span > 0.0 else np.zeros(2)
 
 
 class _Worker:
