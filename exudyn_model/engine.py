@@ -177,12 +177,14 @@ class ExudynEngine:
         self.rho_G = np.array(init.rho_G, float)
         self.r_O = np.array(init.orbit_r, float)
         self.v_O = np.array(init.orbit_v, float)
-        self.m_used = 0.0
+        self.m_used = float(init.m_used)
         self.t = 0.0
         self.capture_arm = case.capture.arm
         self.capture_point = np.asarray(p.geometry.grasp_T(case.capture.arm), float)
         self._held: tuple | None = None
         self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0}
+        self.start = "initial" if case.start_state is None else "rigid end state"
+        self._base_start = (np.asarray(init.base_pose, float), np.asarray(init.base_rate, float))
         self._build(init)
         self._index()
         self._init_solver()
@@ -242,12 +244,15 @@ class ExudynEngine:
         self.rotor_nodes = []
         self.motor_loads = []
         mo = p.motor
+        # θ_m: at the joint angles (springs relaxed) unless the start state gives them
+        th_m = init.joint_angles if init.motor_angles is None else init.motor_angles
+        om_m = init.joint_rates if init.motor_rates is None else init.motor_rates
         for j in range(6):
             parent = self.base_node if j % 3 == 0 else self.links[j - 1].frame_node
             child = self.links[j].frame_node
             nr = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[float(init.joint_angles[j])],
-                                             initialCoordinates=[0.0],
-                                             initialCoordinates_t=[float(init.joint_rates[j])],
+                                             initialCoordinates=[float(th_m[j] - init.joint_angles[j])],
+                                             initialCoordinates_t=[float(om_m[j])],
                                              numberOfODE2Coordinates=1))
             v = np.zeros(7)
             v[2], v[5], v[6] = 1.0, -1.0, 1.0
@@ -628,6 +633,57 @@ class ExudynEngine:
         `LinkMesh.points(·, N_GAUSS_FIELD)`."""
         return self.mesh.sample(N_GAUSS_FIELD)[2].T @ f_points.reshape(-1)
 
+    # ---- exact state for phase chaining (rsmcheck.chain) -------------------------------
+    def export_state(self) -> dict:
+        """Everything needed to continue this run in a new engine of the same model: absolute
+        ODE2 coordinates and velocities (with the link deformation), the bistop data
+        coordinates, grasp flags, held points, terminal-link bases."""
+        q, v = self._qv()
+        return {"engine": self.name, "rigid": self.rigid, "n_elements": self.n_elements,
+                "q": q, "v": v, "data": np.asarray(self.mbs.systemData.GetDataCoordinates(), float),
+                "grasp_on": self.grasp_on.copy(), "rho_G": self.rho_G.copy(),
+                "basis": [it.basis for it in self.links], "base_pose": q[self.i_base].copy(),
+                "base_rate": v[self.i_base].copy()}
+
+    def import_state(self, exact: dict) -> None:
+        """Continue from `export_state()` of an engine of the same model (same links, element
+        count, grasps and bases: the model is built from the rigid part of the same end
+        state).  A shift of O between the phases (placing O on the orbit at the system COM,
+        rsmcheck.chain) moves every position coordinate by the base's shift.  An exact state
+        of another model size is not used: the run starts from the rigid end state."""
+        q_new, v_new = self._qv()
+        same = (exact.get("engine") == self.name and bool(exact.get("rigid")) == self.rigid
+                and int(exact.get("n_elements", -1)) == self.n_elements
+                and len(exact.get("q", ())) == len(q_new)
+                and list(exact.get("grasp_on", ())) == list(self.grasp_on)
+                and list(exact.get("basis", ())) == [it.basis for it in self.links])
+        if not same:
+            return
+        shift = self._base_start[0][:2] - np.asarray(exact["base_pose"], float)[:2]
+        shift_v = self._base_start[1][:2] - np.asarray(exact["base_rate"], float)[:2]
+        q = np.asarray(exact["q"], float)
+        v = np.asarray(exact["v"], float)
+        for i in self._position_coordinates():
+            q[i] += shift
+            v[i] += shift_v
+        sd = self.mbs.systemData
+        sd.SetODE2Coordinates(q - self.q_ref)
+        sd.SetODE2Coordinates_t(v)
+        sd.SetDataCoordinates(np.asarray(exact["data"], float))
+        self.rho_G = np.asarray(exact["rho_G"], float).copy()
+        for k in range(2):
+            self.mbs.SetMarkerParameter(self.grasp_markers[k], "localPosition", [*self.rho_G[k], 0.0])
+        self.start = "exact end state"
+        self._restart()
+
+    def _position_coordinates(self) -> list[np.ndarray]:
+        """Global ODE2 indices (x, y) of every node position (rigid-body and ANCF nodes)."""
+        out = []
+        for n in range(self.mbs.systemData.NumberOfNodes()):
+            if self.mbs.GetNode(n)["nodeType"] in ("RigidBody2D", "Point2DSlope1"):
+                out.append(self.mbs.GetNodeODE2Index(n) + np.arange(2))
+        return out
+
     # ---- switching -----------------------------------------------------------------------
     def capture(self, arm: int) -> dict[str, float]:
         self._pause()
@@ -855,7 +911,7 @@ class ExudynEngine:
                 "jacobians": self.stats["jacobians"], "restarts": self.stats["restarts"],
                 "stepping": self.stepping, "constraints": self.constraints,
                 "axial_damping": self.axial_damping,
-                "restart_threshold": self.restart_threshold}
+                "restart_threshold": self.restart_threshold, "start": self.start}
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "exudyn", "numpy")

@@ -10,11 +10,12 @@ Every run of a case stores its end state next to its HDF5 file, `DIR/CASE.end.js
   `Sensors` and observables, so it means the same for every engine.
 * ``exact`` — the engine's own full state, under the engine's name (the reference: its
   ODE state vector with the modal amplitudes, the link bases, grasp flags and held
-  points).  An engine restores it when it can (same model size); otherwise it starts
-  from the rigid part with undeformed links (Exudyn, or a reference with another number
-  of modes).  An engine may offer `export_state() -> dict` and
-  `import_state(dict) -> None` (optional additions to the Engine protocol) for its own
-  exact state.
+  points; Exudyn: its absolute ODE2 coordinates and velocities with the beam deformation,
+  bistop data, grasp flags, held points and bases).  An engine restores it when it can
+  (same model size); otherwise it starts from the rigid part with undeformed links (a
+  reference with another number of modes, Exudyn with another element count).  An engine
+  may offer `export_state() -> dict` and `import_state(dict) -> None` (optional additions
+  to the Engine protocol) for its own exact state; ExudynEngine does.
 
 A case with `start_from = "P"` starts from the end state of P written by the same engine
 (and the same variant: full or --short).  When it enters an orbit the previous phase did
