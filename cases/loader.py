@@ -84,6 +84,11 @@ Format (every key optional unless marked):
     [reference]
     n_modes = 2                      # modes per link (0 = rigid), int or 6 ints
 
+    [exudyn]                         # the Exudyn engine's discretisation for this case
+    substeps = 32                    # generalized-α steps per control period (default 2)
+    n_elements = 8                   # ANCF elements per link (default 8)
+    why = "..."                      # required with any setting: the study behind it
+
     [params]                         # overrides of rsmcheck.params.Params, by section
 
     [compare.OBSERVABLE]             # engines compared on this observable (issue 5)
@@ -126,7 +131,7 @@ TARGET_MODES = ("move", "push", "com_align")
 BASE_MODES = ("hold", "freeze", "angle", "retrograde", "off")
 METRICS = ("max_abs", "rms", "final")
 #: top-level keys a [short] table may replace
-SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare")
+SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare", "exudyn")
 
 
 @dataclass(frozen=True)
@@ -284,6 +289,8 @@ class Case:
     short: "Case | None" = field(default=None, repr=False)
     #: a sequence case (the mission): the phase cases it runs in order, each chained
     phases: tuple[str, ...] = ()
+    #: Exudyn engine settings of the case ([exudyn]: substeps, n_elements), defaults elsewhere
+    exudyn: Mapping[str, Any] = field(default_factory=dict)
     #: the common rigid part of the end state this run starts from (set by rsmcheck.chain)
     start_state: Mapping[str, Any] | None = field(default=None, repr=False)
     #: engine-specific exact states of that end state, by engine name (rsmcheck.chain)
@@ -506,7 +513,7 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         return short_keys.get(k, k)
 
     top = {"name", "description", "duration", "short_duration", "initial", "orbit", "controller",
-           "release", "capture", "solver", "reference", "params", "segment", "compare",
+           "release", "capture", "solver", "reference", "exudyn", "params", "segment", "compare",
            "start_from", "short"}
     for k in raw:
         if k not in top:
@@ -627,6 +634,7 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
 
     ref = _table(w, "reference", raw.get("reference", {}), {"n_modes": lambda k, v: _modes(w, k, v)})
     n_modes = ref.get("n_modes", (2,) * 6)
+    exudyn = _exudyn(w, kname("exudyn"), raw.get("exudyn", {}))
 
     segments = _segments(w, kname("segment"), raw.get("segment", []), duration, point)
     if segments and controller.kind != "programme":
@@ -645,7 +653,7 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         controller=controller, releases=tuple(sorted(releases, key=lambda r: r.time)),
         capture=cap, solver=solver, n_modes=n_modes, params=params, path=where,
         file_hash=digest, raw=raw, orbit_spec=orbit_spec, segments=segments, compare=compare,
-        start_from=start_from, has_initial=has_initial, is_short=is_short,
+        start_from=start_from, has_initial=has_initial, is_short=is_short, exudyn=exudyn,
     )
 
 
@@ -871,6 +879,19 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
         _require(w, k, c, ("tolerance", "why"))
         out.append(CompareSpec(observable=obs, **c))
     return tuple(out)
+
+
+def _exudyn(w: str, key: str, v: Any) -> dict[str, Any]:
+    """[exudyn]: the engine's step and mesh for this case, with the reason (a study)."""
+    t = _table(w, key, v, {
+        "substeps": lambda k, x: _integer(w, k, x, 1, 4096),
+        "n_elements": lambda k, x: _integer(w, k, x, 1, 64),
+        "why": lambda k, x: _text(w, k, x),
+    })
+    if t and "why" not in t:
+        raise InputError(w, f"{key}.why", "missing (required with any setting: the study behind it)")
+    t.pop("why", None)
+    return t
 
 
 def _grasp(where: str, key: str, v: Any) -> tuple[int, int]:

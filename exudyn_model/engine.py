@@ -63,6 +63,7 @@ from exudyn.itemInterface import (  # noqa: E402
 from cases.loader import Case  # noqa: E402
 from exudyn_model import field as fld  # noqa: E402
 from exudyn_model import links  # noqa: E402
+from exudyn_model import reactions  # noqa: E402
 from rsmcheck.engine import Inputs, Sensors  # noqa: E402
 from rsmcheck.errors import SimulationDiverged  # noqa: E402
 from rsmcheck.initial import build_initial  # noqa: E402
@@ -74,11 +75,13 @@ PP, PF = "PP", "PF"
 SUBSTEPS_DEFAULT = 2  # generalized-α steps per 1 ms control period
 SPECTRAL_RADIUS_DEFAULT = 0.6  # ENGINE-NOTES: ≤ 0.6 keeps switched multipliers clean
 NEWTON_RTOL_DEFAULT = 1e-8
-#: Absolute Newton tolerance [N, m]: the round-off floor of the ANCF axial forces is
-#: EA·ε_mach·|q|/le ≈ 1e-5 N (EA = 4.5e8 N), so a purely relative test stalls whenever the
-#: initial residual of a step is below ~1 N (smooth drift).  1e-4 N on a 36 kg link is an
-#: acceleration error of 3e-6 m/s² for one step.  Rigid links have no such floor.
-NEWTON_ATOL_FLEXIBLE = 1e-4
+#: Absolute Newton tolerance of the flexible model [N], per N of axial stiffness EA: the
+#: ANCF axial forces carry a round-off floor ∝ ε_mach·EA (EA·ε·|q|/le and the cancellation
+#: in the strain of a stiff element), so a purely relative test stalls whenever a step's
+#: initial residual is small (smooth drift).  Measured: 100·ε·EA stalls (flex_arm_step,
+#: EA = 1e5·EI), 1000·ε·EA runs every case: 1.0e-3 N at EA = 1e5·EI, an acceleration of
+#: 3e-5 m/s² on a 36 kg link for one step.  Rigid links have no such floor.
+NEWTON_ATOL_PER_EA = 1000 * np.finfo(float).eps
 NEWTON_ATOL_RIGID = 1e-10
 #: restart generalized-α when a held input jumps by more than this fraction of its limit:
 #: a jump carried by the algorithmic acceleration leaves an O(h) error; below the threshold
@@ -126,8 +129,9 @@ class ExudynEngine:
 
     Options:
       rigid           rigid links (the rigid-equivalence check against the reference with 0 modes)
-      n_elements      ANCF elements per link
-      substeps        generalized-α steps per control period (h = control_period/substeps)
+      n_elements      ANCF elements per link (default: the case's [exudyn] table, else 8)
+      substeps        generalized-α steps per control period (h = control_period/substeps;
+                      default: the case's [exudyn] table, else 2)
       spectral_radius ρ∞ of generalized-α
       newton_rtol     relative Newton tolerance
       field           build the field/thrust machinery (default: when the case has an orbit)
@@ -142,7 +146,7 @@ class ExudynEngine:
     name = "exudyn"
 
     def __init__(self, case: Case, params: Params | None = None, rigid: bool = False,
-                 n_elements: int = links.N_ELEMENTS_DEFAULT, substeps: int = SUBSTEPS_DEFAULT,
+                 n_elements: int | None = None, substeps: int | None = None,
                  spectral_radius: float = SPECTRAL_RADIUS_DEFAULT, newton_rtol: float = NEWTON_RTOL_DEFAULT,
                  newton_atol: float | None = None,
                  field: bool | None = None, restart_on_input_change: bool = True,
@@ -151,12 +155,16 @@ class ExudynEngine:
         self.case = case
         self.params = params or case.params
         self.rigid = bool(rigid)
-        self.n_elements = int(n_elements)
-        self.substeps = int(substeps)
+        # explicit options > the case's [exudyn] table > the engine defaults
+        self.n_elements = int(n_elements if n_elements is not None
+                              else case.exudyn.get("n_elements", links.N_ELEMENTS_DEFAULT))
+        self.substeps = int(substeps if substeps is not None else case.exudyn.get("substeps", SUBSTEPS_DEFAULT))
         self.spectral_radius = float(spectral_radius)
         self.newton_rtol = float(newton_rtol)
+        p = self.params
         self.newton_atol = float(newton_atol if newton_atol is not None else
-                                 (NEWTON_ATOL_RIGID if self.rigid else NEWTON_ATOL_FLEXIBLE))
+                                 (NEWTON_ATOL_RIGID if self.rigid
+                                  else NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)
@@ -169,7 +177,6 @@ class ExudynEngine:
         self.constraints = constraints
         self.axial_damping = float(axial_damping)
         self.dt = case.solver.control_period
-        p = self.params
         self.mesh = links.LinkMesh(self.n_elements, p.link.length, p.link.rho_a)
         self.I0 = p.link.mass * p.link.length**2 / 3.0
         init = build_initial(case, p)
@@ -505,18 +512,8 @@ class ExudynEngine:
         thrust = held[2]
         if thrust != 0.0 and not self.field:
             raise SimulationDiverged(self.name, self.t, "?", "thrust without field (build with field=True)", thrust)
-        if self.field:
-            # mass, tidal field: held over the interval; thrust inertia: every step (_ThrustInertia)
-            q, _ = self._qv()
-            mbs.SetObjectParameter(self.base, "mass", self._mass_base())
-            self._thrust_inertia.hold(self._tidal_forces(q), self._uniform_field_matrix(),
-                                      thrust / self._com(q)[1], self.t)
-            mbs.SetObjectParameter(self.carrier, "forceVector", self._thrust_inertia.forces(q[self.i_base[2]]))
+        self._set_inputs(held, self._thrust_inertia if self.field else None)
         if held != self._held:
-            for j in range(6):
-                mbs.SetLoadParameter(self.motor_loads[j], "load", held[0][j])
-            mbs.SetLoadParameter(self.base_torque_load, "loadVector", [0.0, 0.0, held[1]])
-            mbs.SetLoadParameter(self.thrust_load, "loadVector", [held[2], 0.0, 0.0])
             if self.restart_on_input_change and self._is_step(held):
                 # a step in the held inputs is a jump in the accelerations: restart the
                 # integrator with accelerations consistent with the new inputs (else the
@@ -558,6 +555,22 @@ class ExudynEngine:
             p = self.params.actuators
             self.m_used += thrust / (p.isp * p.g0) * (t_next - self.t)
         self.t = t_next
+
+    def _set_inputs(self, held: tuple, thrust_inertia: "_ThrustInertia | None") -> None:
+        """Put the held inputs (τ_m, τ_B, thrust) of the coming control period into the mbs;
+        with the field machinery also the base mass, the tidal forces (held over the
+        period) and the thrust inertia, through `thrust_inertia` (evaluated every step)."""
+        mbs = self.mbs
+        tau_m, tau_B, thrust = held
+        for j in range(6):
+            mbs.SetLoadParameter(self.motor_loads[j], "load", float(tau_m[j]))
+        mbs.SetLoadParameter(self.base_torque_load, "loadVector", [0.0, 0.0, float(tau_B)])
+        mbs.SetLoadParameter(self.thrust_load, "loadVector", [float(thrust), 0.0, 0.0])
+        if thrust_inertia is not None:
+            q, _ = self._qv()
+            mbs.SetObjectParameter(self.base, "mass", self._mass_base())
+            thrust_inertia.hold(self._tidal_forces(q), self._uniform_field_matrix(), thrust / self._com(q)[1], self.t)
+            mbs.SetObjectParameter(self.carrier, "forceVector", thrust_inertia.forces(q[self.i_base[2]]))
 
     def _is_step(self, held) -> bool:
         """True when the inputs jump by more than `restart_threshold` of their limits (or
@@ -749,31 +762,18 @@ class ExudynEngine:
     def _plastic_impact(self) -> float:
         """Mass-weighted projection of the velocities on the active constraints
         (docs/physics.md §4.2): [M Gᵀ; G 0][v⁺; μ] = [M v; 0].  Returns the energy lost."""
-        # matrices at the current state from a separate (static) solver object: the
-        # integrator's own matrices are factorised sparse and must not be disturbed; the
-        # static solver starts from the initial configuration, so current → initial first
+        # M and the constraint Jacobian at the current state from Exudyn's own functions, by
+        # the separate static solver object of exudyn_model.reactions (the integrator's own
+        # matrices are factorised sparse and must not be disturbed; that helper also keeps
+        # the system state that the static solver's initialisation would overwrite)
         mbs = self.mbs
-        self._current_to_initial()
-        solver = exu.MainSolverStatic()
-        settings = exu.SimulationSettings()
-        settings.solution.file.write = False
-        settings.solution.sensors.active = False
-        settings.staticSolver.verboseMode = 0
-        settings.linearSolver.solverType = exu.LinearSolverType.EXUdense
-        solver.InitializeSolver(mbs, settings)
-        n2 = solver.GetODE2size()
-        n_all = n2 + solver.GetODE1size() + solver.GetAEsize()
-        # ComputeJacobianAE *adds* into the solver's system Jacobian, which InitializeSolver
-        # does not clear: start from zeros (else stale memory, seen as NaN entries)
-        solver.ComputeMassMatrix(mbs)
-        M = np.asarray(solver.GetSystemMassMatrix())
-        solver.SetSystemJacobian(np.zeros((n_all, n_all)))
-        solver.ComputeJacobianAE(mbs, scalarFactor_ODE2=1.0, scalarFactor_ODE2_t=0.0,
-                                 scalarFactor_ODE1=0.0, velocityLevel=False)
-        J = np.asarray(solver.GetSystemJacobian())
+        cf = reactions.for_engine(self)
+        M = cf.mass_matrix()
+        J = cf.constraint_jacobian()
+        n2 = cf.n2
         if not (np.all(np.isfinite(M)) and np.all(np.isfinite(J))):
             raise SimulationDiverged(self.name, self.t, "?", "mass matrix / constraint Jacobian at capture", float("nan"))
-        G = J[n2 + solver.GetODE1size():, :n2]
+        G = J[n2:, :n2]  # AE rows (no ODE1 coordinates)
         G = G[np.any(G != 0.0, axis=1)]
         v = np.asarray(mbs.systemData.GetODE2Coordinates_t())
         nc = G.shape[0]
@@ -795,12 +795,13 @@ class ExudynEngine:
         XT = q[self.i_target]
         rE, rEd = s.ee_pos_I, s.ee_vel_I
         cap = XT[:2] + _rot(XT[2]) @ self.capture_point
-        reaction = np.zeros(4)
+        # grasp forces by the index-1 solve at this sample with the inputs held from it
+        # (exudyn_model.reactions): the integrator's index-3 multipliers have a round-off
+        # floor ∝ 1/h² (docs/exudyn.md §6) and belong to the last period's inputs
+        reaction = reactions.grasp_forces(self, inputs)
         residual = np.zeros(4)
         for k in range(2):
             if self.grasp_on[k]:
-                lam = np.asarray(self.mbs.GetObjectOutput(self.grasp_joints[k], exu.OutputVariableType.Force))
-                reaction[2 * k:2 * k + 2] = lam[:2]
                 residual[2 * k:2 * k + 2] = rE[k] - (XT[:2] + _rot(XT[2]) @ self.rho_G[k])
         deflection = np.zeros(6)
         for it in self.links:

@@ -69,10 +69,15 @@ class LinkParams:
         NON_NEGATIVE,
     )
     axial_to_bending: float = _p(
-        1.0e4,
+        1.0e5,
         "EA/EI in 1/m² for engines with axial flexibility (Exudyn).  The reference is "
-        "axially rigid; 1e4 puts the first axial mode above 1 kHz, far outside the band "
-        "of interest (ENGINE-NOTES: below ~1e3 it enters the band).",
+        "axially rigid (EA → ∞), so this is a penalty: the stiffer, the closer to the "
+        "reference, until round-off stops Newton.  At 1e4 the coupled arm frequencies of "
+        "the two engines differ by up to 1.3e-3, the axial compliance being most of it "
+        "(docs/exudyn.md §5.1); 1e5 (first axial mode 2.3–4.6 kHz, damped by the "
+        "integrator) cuts that tenfold; 1e6 needs a Newton tolerance of 1e-2 N (the axial "
+        "force's round-off EA·ε·|q|/le), which then shows in the momentum.  Below ~1e3 an "
+        "axial mode enters the band of interest (ENGINE-NOTES).",
     )
 
     @property

@@ -73,6 +73,14 @@ def test_valid_case_loads(tmp_path):
     assert case.path == str(path)
     assert len(case.file_hash) == 64
     assert case.run_duration(True) == 1.0 and case.run_duration(False) == 2.0
+    assert case.exudyn == {}
+
+
+def test_exudyn_table_sets_the_engine_discretisation(tmp_path):
+    text = VALID + '[exudyn]\nsubsteps = 32\nn_elements = 4\nwhy = "the step study"\n'
+    case = load_case(write(tmp_path, text, "good"))
+    assert case.exudyn == {"substeps": 32, "n_elements": 4}
+    assert case.variant(True).exudyn == {"substeps": 32, "n_elements": 4}
 
 
 # (id, edit of VALID, field the error must name)
@@ -122,6 +130,10 @@ BAD = [
     ("bad_n_modes", lambda t: edit(t, "n_modes = 2", "n_modes = 9"), "reference.n_modes"),
     ("link_inertia_below_slender_beam",
      lambda t: edit(t, "damping_ratio = 0.02", "damping_ratio = 0.02\ninertia_z = 5.0"), "params.link.inertia_z"),
+    ("exudyn_unknown_key", lambda t: t + '[exudyn]\nstep = 1e-5\nwhy = "a study"\n', "exudyn.step"),
+    ("exudyn_substeps_not_integer", lambda t: t + '[exudyn]\nsubsteps = 2.5\nwhy = "a study"\n', "exudyn.substeps"),
+    ("exudyn_substeps_zero", lambda t: t + '[exudyn]\nsubsteps = 0\nwhy = "a study"\n', "exudyn.substeps"),
+    ("exudyn_without_why", lambda t: t + "[exudyn]\nsubsteps = 32\n", "exudyn.why"),
     ("toml_syntax", lambda t: t + "this is not toml\n", "toml"),
 ]
 

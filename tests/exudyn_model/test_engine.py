@@ -190,3 +190,11 @@ def test_intervals_other_than_the_control_period(free_drift, stepping):
     assert np.abs(final([1e-3] * 5 + [1e-2] * 2 + [1e-3] * 5) - base).max() < 1e-12
     # 0.7 ms and 1.3 ms: 2 and 3 steps of 0.35 and 0.43 ms instead of 0.5 ms (O(h²) apart)
     assert np.abs(final([1e-3] * 5 + [7e-4, 1.3e-3] + [1e-3] * 23) - base).max() < 1e-9
+
+
+def test_case_exudyn_table_sets_the_step_and_options_override_it():
+    case = load_case("motor_step")
+    assert case.exudyn["substeps"] == 32
+    assert ExudynEngine(case, rigid=True).substeps == 32
+    assert ExudynEngine(case, rigid=True, substeps=4).substeps == 4
+    assert ExudynEngine(load_case("free_drift"), rigid=True).substeps == 2  # no table: the default

@@ -1,0 +1,255 @@
+"""Constraint forces of an Exudyn system from an index-1 (acceleration-level) solve.
+
+The generalized-α integrator (index 3) returns Lagrange multipliers with a round-off floor
+≈ ε·M·|q| / (β h²) that grows as the step shrinks (docs/exudyn.md §6).  Here the
+multipliers are computed instead from the state (q, q̇) alone, which is as accurate as the
+integrator's positions and velocities:
+
+    [ M   Gᵀ ] [ q̈ ]   [ f(q, q̇, t) ]
+    [ G   0  ] [ λ  ] = [ γ(q, q̇)    ],     γ = −(∂(G q̇)/∂q) q̇ ,
+
+every matrix and vector from Exudyn's own functions for the model, evaluated by a separate
+`exu.MainSolverStatic` on the mbs at its current configuration (never the reference
+model's equations):
+
+* M   `ComputeMassMatrix` → `GetSystemMassMatrix()` (ODE2 × ODE2);
+* G   `ComputeJacobianAE(scalarFactor_ODE2=1, scalarFactor_ODE2_t=0, scalarFactor_ODE1=0)`
+      into a zeroed system Jacobian (it *adds*); the call fills the whole saddle-point
+      pattern [[0, Gᵀ], [G, J_λλ]]: active constraints give their rows of G (and the
+      columns of Gᵀ), a switched-off connector (`activeConnector = False`) gives the rows
+      "λ = 0" (G row zero, J_λλ = 1, also the unused second row of a prismatic joint
+      without rotation constraint).  The system solved is exactly that Jacobian with M
+      added in the ODE2 block, so inactive multipliers come out as 0 and no row selection
+      is needed;
+* f   `ComputeODE2RHS` → `GetSystemResidual()[:nODE2]`: applied loads minus the internal,
+      elastic, damping and connector (spring-damper, bistop) forces, *without* Gᵀλ;
+      Exudyn's equations of motion are M q̈ + Gᵀλ = f, so λ has the sign of
+      `GetObjectOutput(·, OutputVariableType.Force)` (= the object's AE coordinates,
+      `systemData.GetObjectLTGAE(object)` gives their places);
+* γ   central difference (4 points, O(ε⁴)) of Exudyn's velocity-level algebraic equations
+      g_v(q, q̇) = G(q) q̇ (`ComputeAlgebraicEquations(velocityLevel=True)`) along q̇, q̇ held:
+      (∂(G q̇)/∂q) q̇ = d/ds g_v(q + s q̇, q̇) at s = 0.  For a λ = 0 row g_v is λ itself,
+      unchanged by the perturbation, so its γ is exactly 0.
+
+Units: SI; λ of a position constraint (revolute joint) is a force in N.  All constraints of
+the model are scleronomic (no explicit time dependence), which the formula assumes.
+
+The static solver is initialised once (lazily).  Its `InitializeSolver` copies the
+system's initial state onto the current and start-of-step states and sets the times, so
+those three states (accelerations included: `GetSystemState` has none) are saved and
+restored around it; it also resets the system-wide solver flags to their defaults (load
+factor 1), which the time integration uses unchanged.  Later evaluations only read the
+current state; the perturbed coordinates for γ are restored bit for bit.  The running
+integrator, paused in its post-step function, keeps its own solver object, factorised
+Jacobian and algorithmic accelerations: its trajectory is bit for bit the same with and
+without these evaluations (tests/exudyn_model/test_reactions.py).  Switching a connector
+on or off needs no re-initialisation: the evaluation reads `activeConnector` at every
+call and the system sizes do not change (same λ as a fresh object, tested; the capture
+projection is bit for bit the one of a freshly initialised solver).
+
+Cost per evaluation (2 cores, shared): rigid model (30 ODE2 coordinates, 16 multipliers)
+0.13 ms; flexible model (6 links × 8 ANCF elements: 252 ODE2 coordinates, 50 multipliers)
+2.0 ms (system Jacobian 0.8 ms, SuperLU 0.6 ms, γ 0.08 ms, M 0.06 ms, f 0.02 ms).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import io
+import sys
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import linalg as spla
+
+sys.exudynFast = True  # the engine's build (exudyn_model.engine): import order must not matter
+with contextlib.redirect_stdout(io.StringIO()):
+    import exudyn as exu
+
+#: Step s [s] of the difference along q̇ for γ (q ± s q̇, q ± 2s q̇: the configurations a
+#: time s, 2s ahead and back on the tangent).  Truncation of the 4-point stencil ≈ (s ω)⁴/30
+#: of γ for rotation rates ω (3e-14 at ω = 10 rad/s; free_drift turns at ≤ 0.05 rad/s);
+#: round-off ≈ ε_mach (|q̇| + ω|q|)/s in γ, i.e. ∝ 1/s.  Measured (free_drift, rigid,
+#: 0.18 N reaction): λ moves by ≤ 6e-13 N for s = 3e-3 … 1e-4 s, 2e-11 N at 1e-5 s,
+#: 6e-10 N at 1e-7 s; rigid pendulum (ω = 1.3 rad/s): 9e-15 from the analytic λ.
+EPS_DEFAULT = 1e-4
+
+#: Solve the saddle-point system with SuperLU above this size (flexible model: 302 unknowns,
+#: 1488 non-zeros, 0.6 ms; dense LAPACK 0.8 ms median but up to 0.15 s when the threaded
+#: BLAS competes for the 2 cores), dense below (rigid model: 46 unknowns, 16 µs).
+SPARSE_ABOVE = 100
+
+_STATES = (exu.ConfigurationType.Current, exu.ConfigurationType.StartOfStep, exu.ConfigurationType.Initial)
+
+
+class ConstraintForces:
+    """Index-1 Lagrange multipliers of an Exudyn system at its current state.
+
+    `mbs` must be assembled; `eps` is the step s [s] of the difference along q̇ for γ.
+    """
+
+    def __init__(self, mbs, eps: float = EPS_DEFAULT):
+        self.mbs = mbs
+        self.eps = float(eps)
+        self.solver: exu.MainSolverStatic | None = None
+
+    # ---- setup --------------------------------------------------------------------------
+    def _init(self) -> exu.MainSolverStatic:
+        if self.solver is not None:
+            return self.solver
+        sd = self.mbs.systemData
+        # InitializeSolver sets current = start-of-step = initial state and the initial time
+        # to the load-step start: keep all of it (GetSystemState has no accelerations)
+        saved = [(c, sd.GetSystemState(configuration=c), sd.GetODE2Coordinates_tt(configuration=c),
+                  sd.GetTime(c)) for c in _STATES]
+        solver = exu.MainSolverStatic()
+        settings = exu.SimulationSettings()
+        settings.solution.file.write = False
+        settings.solution.sensors.active = False
+        settings.staticSolver.verboseMode = 0
+        settings.linearSolver.solverType = exu.LinearSolverType.EXUdense
+        try:
+            solver.InitializeSolver(self.mbs, settings)
+        finally:
+            for c, state, acc, t in saved:
+                sd.SetSystemState(state, configuration=c)
+                if len(acc) == len(state[0]):  # (unsized before the first solver run)
+                    sd.SetODE2Coordinates_tt(acc, configuration=c)
+                sd.SetTime(t, c)
+        if solver.GetODE1size() != 0:
+            raise NotImplementedError("ConstraintForces: systems with ODE1 coordinates")
+        self.n2 = solver.GetODE2size()
+        self.nae = solver.GetAEsize()
+        self.n = self.n2 + self.nae
+        self._zero = np.zeros((self.n, self.n))
+        self.solver = solver
+        return solver
+
+    # ---- Exudyn's matrices and vectors at the current state -----------------------------
+    def mass_matrix(self) -> np.ndarray:
+        """M (ODE2 × ODE2) at the current state."""
+        s = self._init()
+        s.ComputeMassMatrix(self.mbs)
+        return np.array(s.GetSystemMassMatrix())
+
+    def constraint_jacobian(self) -> np.ndarray:
+        """The (ODE2 + AE)² Jacobian of the algebraic equations: [[0, Gᵀ], [G, J_λλ]]."""
+        s = self._init()
+        s.SetSystemJacobian(self._zero)  # ComputeJacobianAE adds into it
+        s.ComputeJacobianAE(self.mbs, scalarFactor_ODE2=1.0, scalarFactor_ODE2_t=0.0,
+                            scalarFactor_ODE1=0.0, velocityLevel=False)
+        return np.array(s.GetSystemJacobian())
+
+    def rhs(self) -> np.ndarray:
+        """f = applied minus internal forces (ODE2), without the constraint reactions."""
+        s = self._init()
+        s.ComputeODE2RHS(self.mbs)
+        return np.array(s.GetSystemResidual()[:self.n2])
+
+    def velocity_constraints(self) -> np.ndarray:
+        """g_v = G q̇ (active rows; λ for the λ = 0 rows)."""
+        s = self._init()
+        s.ComputeAlgebraicEquations(self.mbs, velocityLevel=True)
+        return np.array(s.GetSystemResidual()[self.n2:])
+
+    def gamma(self) -> np.ndarray:
+        """γ = −(∂(G q̇)/∂q) q̇ by a 4-point central difference along q̇."""
+        self._init()
+        sd = self.mbs.systemData
+        q = sd.GetODE2Coordinates()
+        v = sd.GetODE2Coordinates_t()
+        e = self.eps
+        g = {}
+        try:
+            for k in (-2, -1, 1, 2):
+                sd.SetODE2Coordinates(q + (k * e) * v)
+                g[k] = self.velocity_constraints()
+        finally:
+            sd.SetODE2Coordinates(q)
+        return -(8.0 * (g[1] - g[-1]) - (g[2] - g[-2])) / (12.0 * e)
+
+    # ---- the index-1 solve ---------------------------------------------------------------
+    def solve(self) -> tuple[np.ndarray, np.ndarray]:
+        """(q̈, λ) of the index-1 system at the current state (λ in the AE order)."""
+        self._init()
+        K = self.constraint_jacobian()
+        K[:self.n2, :self.n2] += self.mass_matrix()
+        b = np.concatenate([self.rhs(), self.gamma()])
+        if self.n > SPARSE_ABOVE:
+            x = spla.splu(sparse.csc_matrix(K)).solve(b)
+        else:
+            x = np.linalg.solve(K, b)
+        return x[:self.n2], x[self.n2:]
+
+    def multipliers(self) -> np.ndarray:
+        """λ (all AE coordinates) at the current state."""
+        return self.solve()[1]
+
+    def object_forces(self, objects, lam: np.ndarray | None = None) -> list[np.ndarray]:
+        """λ of each object in `objects` (its AE coordinates, `GetObjectLTGAE` order), in the
+        convention of `GetObjectOutput(obj, OutputVariableType.Force)`; `lam` from
+        `multipliers()` (computed when None)."""
+        if lam is None:
+            lam = self.multipliers()
+        sd = self.mbs.systemData
+        return [lam[np.asarray(sd.GetObjectLTGAE(o), dtype=int)] for o in objects]
+
+
+def for_engine(engine) -> ConstraintForces:
+    """The `ConstraintForces` of an `ExudynEngine` (created on first use, kept on the engine)."""
+    cf = engine.__dict__.get("_constraint_forces")
+    if cf is None or cf.mbs is not engine.mbs:
+        cf = engine.__dict__["_constraint_forces"] = ConstraintForces(engine.mbs)
+    return cf
+
+
+@contextlib.contextmanager
+def held_inputs(engine, inputs):
+    """Within the block the mbs carries `inputs` as `ExudynEngine.advance` applies them at
+    the start of the coming period (`ExudynEngine._set_inputs`, the same code), the thrust
+    inertia through a copy of the engine's `_ThrustInertia`, whose own state is left alone.
+    Everything set is put back afterwards.
+
+    Why: at a control sample the loads in the mbs are still the last period's, while an
+    observable belongs to the sample with the inputs held from it (the reference evaluates
+    its reactions with them).  τ_m acts on the rotor coordinates only (no mass coupling)
+    and never changes λ; τ_B, thrust and the field do (measured against the reference,
+    rigid, h = 7.8 µs: capture 1.7e-5 → 6.9e-7, wrist_bistop 8.1e-7 → 1.2e-7)."""
+    mbs = engine.mbs
+    loads = [(ld, "load") for ld in engine.motor_loads]
+    loads += [(engine.base_torque_load, "loadVector"), (engine.thrust_load, "loadVector")]
+    objects = [(engine.base, "mass"), (engine.carrier, "forceVector")] if engine.field else []
+    old_loads = [mbs.GetLoadParameter(ld, name) for ld, name in loads]
+    old_objects = [mbs.GetObjectParameter(ob, name) for ob, name in objects]
+    held = (tuple(np.asarray(inputs.tau_m, float)), float(inputs.tau_B), float(inputs.thrust))
+    try:
+        engine._set_inputs(held, copy.copy(engine._thrust_inertia) if engine.field else None)
+        yield
+    finally:
+        for (ld, name), val in zip(loads, old_loads):
+            mbs.SetLoadParameter(ld, name, val)
+        for (ob, name), val in zip(objects, old_objects):
+            mbs.SetObjectParameter(ob, name, val)
+
+
+def grasp_forces(engine, inputs=None) -> np.ndarray:
+    """`reaction_forces_I` of an `ExudynEngine` [N] (4: grasp 1 x, y, grasp 2 x, y; inertial
+    axes; zero for a grasp that is off) by the index-1 solve at the current state, with the
+    sign of `GetObjectOutput(grasp joint, Force)`: the force of the arm on the target
+    (marker 0 of the joint; Exudyn's M q̈ + Gᵀλ = f puts −λ on the marker-1 body).
+
+    inputs: the held inputs of the coming period (`rsmcheck.engine.Inputs`), applied for the
+    evaluation by `held_inputs`; None: the loads as they stand in the mbs (those of the
+    period that just ended, the state the integrator's own multipliers belong to)."""
+    out = np.zeros(4)
+    if not np.any(engine.grasp_on):
+        return out
+    cf = for_engine(engine)
+    with held_inputs(engine, inputs) if inputs is not None else contextlib.nullcontext():
+        lam = cf.multipliers()
+    forces = cf.object_forces(engine.grasp_joints, lam)
+    for k in range(2):
+        if engine.grasp_on[k]:
+            out[2 * k:2 * k + 2] = forces[k][:2]
+    return out
