@@ -16,38 +16,30 @@ from cases.loader import list_cases, load_case
 from rsmcheck.compare import check_runs
 
 #: (case, observable) -> why it cannot pass at the case's tolerance, with the measured size
-RIPPLE = ("generalized-α phase error on the undamped 92 Hz rotor ripple (C_m = 0.002, ζ = 1.4e-5): "
-          "period error (ωh)²/12 = 0.88 % at h = 0.5 ms, 5 rad of phase per second")
+#: (Exudyn at the case's [exudyn] step, EA = 1e5·EI; docs/exudyn.md §5, §8)
 KNOWN: dict[tuple[str, str], str] = {
-    ("flex_arm_step", "link_deflection"):
-        f"{RIPPLE}; the ripple drives the link vibration: 6.8e-7 m at h = 0.5 ms (tolerance 1e-7); "
-        "passes at h = 62.5 µs (6.1e-8 m); the floor below that is ~2 % of the deflection (axial "
-        "compliance EA = 1e4·EI: 1.1 % with EA = 1e5·EI)",
     ("motor_step", "motor_angles"):
-        f"{RIPPLE}: 1.7e-3 rad at h = 0.5 ms, 3.1e-4 at 125 µs, 2.8e-5 at 31 µs, 1.3e-5 at 7.8 µs (tolerance "
-        "1e-6); the floor is the rotor-mode frequency shift of the FE links' axial compliance (coupled "
-        "frequencies −0.02…−0.13 %, docs/exudyn.md §3): 1e-4 of 92 Hz is 0.06 rad of phase per second on a "
-        "~1e-3 rad ripple",
-    ("motor_step", "joint_angles"):
-        f"{RIPPLE}: 5.2e-6 rad at h = 0.5 ms (tolerance 1e-6); passes at h = 125 µs (1.0e-6, marginal) "
-        "and 31 µs (2.8e-7)",
+        "the 92 Hz twist rings with A = 1.2e-3 rad (elbow) for 0.9 s, so any relative difference δ in its "
+        "frequency costs ≈ A·ω·T·δ: generalized-α's period error (ωh)²/12 at h = 31 µs gives 1.7e-5 rad, the "
+        "engines' rotor-mode frequencies differ by δ = 1e-6 … 3.4e-5 (FE vs 2-mode links, EA = 1e5·EI; "
+        "rsmcheck.modes at this configuration), ≤ 2e-5 rad; measured 2.1e-5 rad (tolerance 1e-6); with "
+        "EA = 1e6·EI and h = 7.8 µs 3.3e-6",
     ("p1_rigid_gains", "ee2_speed"):
         "the case's point is a marginally unstable rotor mode (reference σ ≈ +0.45/s with 2 modes, +0.34 with 4, "
-        "+0.30 with 6): Exudyn at h = 0.5 ms damps it (generalized-α dissipation; rigid links: stable at 0.5 ms, "
-        "unstable at 125 µs) and with flexible links also the axial Kelvin–Voigt damping η·EA of the FE links "
-        "(125 µs: stable; axial_damping = 0: unstable, σ ≈ +0.4/s): ee2_speed 2e-4 m/s vs 0.35 m/s at t = 50 s",
+        "+0.30 with 6, converging): Exudyn does not show it; ee2_speed differs by 0.35 m/s at t = 50 s "
+        "(tolerance 2e-4 m/s) at h = 0.5 ms, at 125 µs with and without the axial damping, and at 0.5 and 0.25 ms "
+        "with ρ∞ = 1 (no numerical dissipation): not the integrator's dissipation alone (EA = 1e5·EI); unexplained, "
+        "docs/exudyn.md §10",
     ("release", "reaction_forces_I"):
-        f"{RIPPLE}: the squeeze reaction is mostly ripple (±10 N): 18.6 N at h = 0.5 ms, 1.0 N at 31 µs, "
-        "0.83 N at 16 µs (tolerance 0.05 N); below that the axial compliance of the FE links (EA = 1e4·EI, "
-        "the reference is axially rigid) rings the reaction by 0.24 N in the first 20 ms (0.02 N with EA = 1e5·EI)",
-    ("release", "ee2_pos_B"):
-        f"{RIPPLE}: the arm springs away with the ripple state of t = 1 s: 3.1e-4 m at h = 0.5 ms "
-        "(tolerance 5e-5); passes at 31 µs (3.6e-5)",
+        "after the release the reaction of grasp 1 rings on the 30–36 Hz and 120 Hz arm modes and the 92 Hz "
+        "rotor modes; the engines' frequencies of those differ by 1e-6 … 1.6e-4 (FE vs 2-mode links, EA = 1e5·EI; "
+        "rsmcheck.modes) and the integrator's ripple phase adds (ωh)²/12 per radian: 0.32 N at h = 31 µs, 0.24 N "
+        "at 7.8 µs with EA = 1e6·EI (tolerance 0.05 N)",
     ("release", "momentum_I"):
         "momentum is not conserved across the release in either engine: redefining the terminal frame (PP→PF) "
-        "changes the J_extra·θ̇ share of the angular momentum by J_extra·δ̇ (reference +4.7e-5, Exudyn +2.0e-5 "
-        "kg·m²/s), which depends on the link vibration at that instant; the difference is 2.7e-5 at h = 0.5 ms, "
-        "1.4e-5 at 16–31 µs with 2 reference modes and 6.2e-6 with 4 (tolerance 1e-6)",
+        "changes the J_extra·θ̇ share of the angular momentum by J_extra·δ̇ (reference +4.7e-5 kg·m²/s), which "
+        "depends on the link vibration at that instant: the engines differ by 1.6e-5 with 2 reference modes, "
+        "4.8e-6 with 4 (tolerance 1e-6)",
 }
 
 

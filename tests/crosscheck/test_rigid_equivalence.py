@@ -12,10 +12,10 @@ reach 1e-5 on each short case (rsmcheck.studies.RIGID_SUBSTEPS), with a tight Ne
 tolerance and a restart at every change of the held inputs (rsmcheck.studies.RIGID_EXUDYN).
 Measured errors: docs/data/rigid_equivalence.json (`python -m rsmcheck.studies equivalence`).
 
-Reaction forces: the index-3 multipliers of generalized-α carry a round-off floor
-∝ ε·M·|q|/h² that grows as the phase error shrinks (measured ×4 per halving of h below
-0.06 ms), so there is no step at which they reach 1e-5 where a grasp is on; those tests are
-xfail(strict) with the measured minimum (KNOWN).
+Reaction forces: computed by Exudyn's index-1 solve at each sample (exudyn_model/reactions.py,
+not the integrator's index-3 multipliers, whose round-off floor ∝ 1/h² grows as the step
+shrinks), they are as accurate as the state and converge at second order; the grasp cases
+need the finest steps (the 92 Hz ripple carries their reactions).  `make study`: ~30 min.
 """
 
 from __future__ import annotations
@@ -28,21 +28,12 @@ from rsmcheck.studies import RIGID_REFERENCE, RIGID_SUBSTEPS, RIGID_TOLERANCE, r
 
 OBSERVABLES = [n for n in NAMES if n != "time"]
 #: (case, observable) -> why 1e-5 is out of reach, with the measured size
-_FLOOR = ("index-3 multipliers: the rotor-phase error (∝ h²) meets a round-off floor ∝ ε·M·|q|/h² "
-          "(free_drift: 1.2e-2 at 0.5 ms, 5.3e-3 at 62.5 µs, then ×4 per halving of h), so no step "
-          "reaches 1e-5; measured here: ")
 KNOWN: dict[tuple[str, str], str] = {
-    ("free_drift", "reaction_forces_I"): _FLOOR + "1.2e-2 of 0.18 N at h = 0.5 ms",
-    ("closed_squeeze", "reaction_forces_I"): _FLOOR + "3.8e-3 of 21 N at 7.8 µs",
-    ("capture", "reaction_forces_I"): _FLOOR + "2.5e-2 of 2.5 N at 7.8 µs",
-    ("release", "reaction_forces_I"): _FLOOR + "2.5e-3 of 21 N at 7.8 µs",
-    ("wrist_bistop", "reaction_forces_I"): _FLOOR + "1.8e-2 of 16 N at 3.9 µs (5.7e-3 at 7.8 µs)",
-    ("gravity_gradient", "reaction_forces_I"): _FLOOR + "1.4e-1 of the 0.01 N floor at 31 µs",
-    ("thrust_burn", "reaction_forces_I"): _FLOOR + "2.1e-2 of 64 N at 7.8 µs",
-    ("thrust_burn", "momentum_I"):
-        "zero-order hold of the thrust-inertia field (docs/exudyn.md §5.5): its direction follows θ_B "
-        "with one control period of lag, T·ω_B·Δt/2 ≈ 1e-4 N of net force: 1.8e-5 of 6.8 (1.2e-4 kg·m/s), "
-        "independent of h (1.8e-5 at 31 µs and 7.8 µs)",
+    ("gravity_gradient", "reaction_forces_I"):
+        "a floor of 2.7e-7 N (2.7e-5 of the 0.01 N scale floor; the tidal grasp forces reach 0.23 mN, so "
+        "1.2e-3 of them) that is not the integrator: the same at h = 31 µs (2.9e-5), 7.8 µs (2.7e-5) and with a 4× shorter control "
+        "period (2.6e-5), so not the zero-order hold of the tidal field either; cause not found yet "
+        "(docs/exudyn.md §10)",
 }
 
 
