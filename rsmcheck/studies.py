@@ -125,7 +125,7 @@ RIGID_EXUDYN = {"rigid": True, "stepping": "period", "newton_rtol": 1e-10, "newt
 #: accurate as the state, whose 92 Hz rotor-ripple phase error falls as h² and grows with
 #: t (docs/exudyn.md §6)
 RIGID_SUBSTEPS = {"free_drift": 256, "flex_arm_step": 128, "motor_step": 1024, "closed_squeeze": 4096,
-                  "capture": 2048, "release": 2048, "wrist_bistop": 1024, "gravity_gradient": 128,
+                  "capture": 2048, "release": 2048, "wrist_bistop": 2048, "gravity_gradient": 128,
                   "thrust_burn": 256}
 #: per-case departures from RIGID_EXUDYN: gravity_gradient's forces are tidal (mN), and a
 #: relative Newton tolerance of 1e-10 of such small residuals stalls at h ≤ 16 µs
