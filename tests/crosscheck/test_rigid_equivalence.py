@@ -15,7 +15,7 @@ Measured errors: docs/data/rigid_equivalence.json (`python -m rsmcheck.studies e
 Reaction forces: computed by Exudyn's index-1 solve at each sample (exudyn_model/reactions.py,
 not the integrator's index-3 multipliers, whose round-off floor ∝ 1/h² grows as the step
 shrinks), they are as accurate as the state and converge at second order; the grasp cases
-need the finest steps (the 92 Hz ripple carries their reactions).  `make study`: ~30 min.
+need the finest steps (the 92 Hz ripple carries their reactions).  `make study`: ≈ 35–45 min on 2 cores.
 """
 
 from __future__ import annotations
