@@ -18,7 +18,8 @@ Every run of a case stores its end state next to its HDF5 file, `DIR/CASE.end.js
   to the Engine protocol) for its own exact state; ExudynEngine does.
 
 A case with `start_from = "P"` starts from the end state of P written by the same engine
-(and the same variant: full or --short).  When it enters an orbit the previous phase did
+(and the same variant: full or --short) — with --short not the first phase of the short
+mission (p2: p1's short variant does not set it up), which runs from its own [initial].  When it enters an orbit the previous phase did
 not have (p3 → p4), O is placed on the case's circular orbit at the system COM
 (`rsmcheck.initial.place_on_orbit`), the same shift for the rigid and the exact state.
 
@@ -242,7 +243,7 @@ def run_case(name_or_case: str | Case, engines: Sequence[str], short: bool, out_
         start_case = variant
         if variant.start_from is not None:
             src = end_state_path(from_dir or out, variant.start_from, short)
-            use = chain if chain is not None else (src.is_file() or not variant.has_initial)
+            use = chain if chain is not None else use_stored_start(variant, src, short)
             if use:
                 st, digest = load_end_state(src, name, short, variant.path)
                 start_case = chained(variant, st)
@@ -259,6 +260,29 @@ def run_case(name_or_case: str | Case, engines: Sequence[str], short: bool, out_
               extra_attrs=extra)
     save_end_states(end_state_path(out, case.name, short), case, short, states)
     return path
+
+
+def starts_short_sequence(name: str) -> bool:
+    """True when the --short variant of a sequence case (the mission) starts at phase `name`
+    although its full sequence does not: the short predecessor does not end where this phase
+    begins (p1's short variant does not bring the target into arm 2's reach), so with --short
+    this phase runs from its own [initial], as in the short mission."""
+    from cases.loader import list_cases
+
+    for path in list_cases():
+        seq = load_case(path)
+        if seq.phases and seq.variant(True).phases[:1] == (name,) and seq.phases[0] != name:
+            return True
+    return False
+
+
+def use_stored_start(variant: Case, src: Path, short: bool) -> bool:
+    """Default of `run_case(chain=None)`: start from the stored end state `src` of the
+    predecessor when it exists — except a phase that starts a short sequence, with --short —
+    and always when the case has no [initial] of its own."""
+    if not variant.has_initial:
+        return True
+    return src.is_file() and not (short and starts_short_sequence(variant.name))
 
 
 def run_mission(mission: Case, engines: Sequence[str], short: bool, out: Path,

@@ -180,3 +180,21 @@ def test_orbit_start_puts_o_at_the_com_with_the_thrust_retrograde():
     assert np.linalg.norm(init.orbit_v) == pytest.approx(np.sqrt(case.params.orbit.mu / r))
     p5 = build_initial(load_case("p5_release"))
     assert np.linalg.norm(p5.orbit_r) == pytest.approx(case.params.orbit.earth_radius + 300e3)
+
+
+def test_short_runs_start_p2_from_its_own_initial(tmp_path):
+    """The short mission starts at p2 (p1's short variant does not bring the target into arm
+    2's reach): with --short, p2 ignores a stored p1 end state; p3 still chains from p2, and
+    full-length runs chain as usual."""
+    from rsmcheck.chain import starts_short_sequence, use_stored_start
+
+    assert starts_short_sequence("p2_capture_regrasp")
+    assert not starts_short_sequence("p3_com_alignment")
+    assert not starts_short_sequence("p1_transport")
+    stored = tmp_path / "p1_transport.short.end.json"
+    stored.write_text("{}")
+    p2 = load_case("p2_capture_regrasp")
+    assert not use_stored_start(p2.variant(True), stored, short=True)
+    assert use_stored_start(p2, stored, short=False)
+    assert use_stored_start(load_case("p3_com_alignment").variant(True), stored, short=True)
+    assert not use_stored_start(p2, tmp_path / "missing.json", short=False)
