@@ -780,22 +780,29 @@ def _arm_command(w: str, key: str, v: Any, seg_duration: float, point) -> ArmCom
         "phi_deg": lambda k, x: _number(w, k, x),
         "torques": lambda k, x: _vector(w, k, x, 3),
     })
-    _require(w, key, c, ("mode",))
-    mode = c["mode"]
-    allowed = {"hold": (), "freeze": (), "off": (), "carry": (), "move": ("to", "time"),
-               "approach": ("point", "phi_deg", "time"), "torque": ("torques",)}[mode]
-    for k in c:
-        if k != "mode" and k not in allowed:
-            raise InputError(w, f"{key}.{k}", f"not used by mode {mode!r}")
-    if mode == "move" and "to" not in c:
-        raise InputError(w, f"{key}.to", "missing (required for mode \"move\")")
-    if mode == "torque" and "torques" not in c:
-        raise InputError(w, f"{key}.torques", "missing (required for mode \"torque\")")
+    mode = _mode_keys(w, key, c, {"hold": (), "freeze": (), "off": (), "carry": (), "move": ("to", "time"),
+                                  "approach": ("point", "phi_deg", "time"), "torque": ("torques",)},
+                      {"move": "to", "torque": "torques"})
     if c.get("time", 0.0) > seg_duration * (1 + 1e-12):
         raise InputError(w, f"{key}.time", f"{c['time']} s exceeds the segment ({seg_duration} s)")
     return ArmCommand(mode=mode, to=c.get("to"), time=c.get("time"),
                       point_T=point(f"{key}.point", c["point"], None) if "point" in c else None,
                       phi_deg=c.get("phi_deg"), torques=c.get("torques", (0.0, 0.0, 0.0)))
+
+
+def _mode_keys(w: str, key: str, c: Mapping[str, Any], allowed: Mapping[str, tuple[str, ...]],
+               required: Mapping[str, str]) -> str:
+    """The `mode` of a command table, after checking that every other key is used by that
+    mode (`allowed`) and that the one key a mode cannot do without is there (`required`)."""
+    _require(w, key, c, ("mode",))
+    mode = c["mode"]
+    for k in c:
+        if k != "mode" and k not in allowed[mode]:
+            raise InputError(w, f"{key}.{k}", f"not used by mode {mode!r}")
+    need = required.get(mode)
+    if need is not None and need not in c:
+        raise InputError(w, f"{key}.{need}", f"missing (required for mode \"{mode}\")")
+    return mode
 
 
 def _target_command(w: str, key: str, v: Any, seg_duration: float) -> TargetCommand:
@@ -809,17 +816,9 @@ def _target_command(w: str, key: str, v: Any, seg_duration: float) -> TargetComm
         "settle_time": lambda k, x: _number(w, k, x, 0.0),
         "max_iterations": lambda k, x: _integer(w, k, x, 1, 100),
     })
-    _require(w, key, c, ("mode",))
-    mode = c["mode"]
-    allowed = {"move": ("to", "time"), "push": ("by", "time"),
-               "com_align": ("tolerance", "step_time", "settle_time", "max_iterations")}[mode]
-    for k in c:
-        if k != "mode" and k not in allowed:
-            raise InputError(w, f"{key}.{k}", f"not used by mode {mode!r}")
-    if mode == "move" and "to" not in c:
-        raise InputError(w, f"{key}.to", "missing (required for mode \"move\")")
-    if mode == "push" and "by" not in c:
-        raise InputError(w, f"{key}.by", "missing (required for mode \"push\")")
+    mode = _mode_keys(w, key, c, {"move": ("to", "time"), "push": ("by", "time"),
+                                  "com_align": ("tolerance", "step_time", "settle_time", "max_iterations")},
+                      {"move": "to", "push": "by"})
     if mode != "push" and c.get("time", 0.0) > seg_duration * (1 + 1e-12):
         # (a push may outlast its segment: the target is released while it moves)
         raise InputError(w, f"{key}.time", f"{c['time']} s exceeds the segment ({seg_duration} s)")
