@@ -83,6 +83,8 @@ Format (every key optional unless marked):
 
     [reference]
     n_modes = 2                      # modes per link (0 = rigid), int or 6 ints
+    h_max = 2e-4                     # [s] largest DP5 step (default 0.05); needs why
+    why = "..."                      # required with h_max: the study behind it
 
     [exudyn]                         # the Exudyn engine's discretisation for this case
     substeps = 32                    # generalized-α steps per control period (default 2)
@@ -291,6 +293,8 @@ class Case:
     phases: tuple[str, ...] = ()
     #: Exudyn engine settings of the case ([exudyn]: substeps, n_elements), defaults elsewhere
     exudyn: Mapping[str, Any] = field(default_factory=dict)
+    #: reference engine step settings of the case ([reference]: h_max), defaults elsewhere
+    reference: Mapping[str, Any] = field(default_factory=dict)
     #: the common rigid part of the end state this run starts from (set by rsmcheck.chain)
     start_state: Mapping[str, Any] | None = field(default=None, repr=False)
     #: engine-specific exact states of that end state, by engine name (rsmcheck.chain)
@@ -632,8 +636,8 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         raise InputError(w, kname("duration"), f"{duration} s is not a whole number of control periods "
                          f"({solver.control_period} s)")
 
-    ref = _table(w, "reference", raw.get("reference", {}), {"n_modes": lambda k, v: _modes(w, k, v)})
-    n_modes = ref.get("n_modes", (2,) * 6)
+    ref = _reference(w, "reference", raw.get("reference", {}))
+    n_modes = ref.pop("n_modes", (2,) * 6)
     exudyn = _exudyn(w, kname("exudyn"), raw.get("exudyn", {}))
 
     segments = _segments(w, kname("segment"), raw.get("segment", []), duration, point)
@@ -654,6 +658,7 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         capture=cap, solver=solver, n_modes=n_modes, params=params, path=where,
         file_hash=digest, raw=raw, orbit_spec=orbit_spec, segments=segments, compare=compare,
         start_from=start_from, has_initial=has_initial, is_short=is_short, exudyn=exudyn,
+        reference=ref,
     )
 
 
@@ -882,12 +887,25 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
 
 def _exudyn(w: str, key: str, v: Any) -> dict[str, Any]:
     """[exudyn]: the engine's step and mesh for this case, with the reason (a study)."""
-    t = _table(w, key, v, {
+    return _engine_settings(w, key, v, {
         "substeps": lambda k, x: _integer(w, k, x, 1, 4096),
         "n_elements": lambda k, x: _integer(w, k, x, 1, 64),
-        "why": lambda k, x: _text(w, k, x),
-    })
-    if t and "why" not in t:
+    }, needs_why=("substeps", "n_elements"))
+
+
+def _reference(w: str, key: str, v: Any) -> dict[str, Any]:
+    """[reference]: modes per link, and the largest DP5 step with the reason (a study)."""
+    return _engine_settings(w, key, v, {
+        "n_modes": lambda k, x: _modes(w, k, x),
+        "h_max": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=0.05),
+    }, needs_why=("h_max",))
+
+
+def _engine_settings(w: str, key: str, v: Any, known: Mapping[str, Callable[[str, Any], Any]],
+                     needs_why: tuple[str, ...]) -> dict[str, Any]:
+    """An engine's settings table; a numerical setting in `needs_why` requires `why`."""
+    t = _table(w, key, v, {**known, "why": lambda k, x: _text(w, k, x)})
+    if any(k in t for k in needs_why) and "why" not in t:
         raise InputError(w, f"{key}.why", "missing (required with any setting: the study behind it)")
     t.pop("why", None)
     return t

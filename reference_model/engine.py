@@ -38,7 +38,7 @@ class ReferenceEngine:
     name = "reference"
 
     def __init__(self, case: Case, params: Params | None = None, n_modes=None, rtol: float | None = None,
-                 integrator: str | None = None):
+                 integrator: str | None = None, h_max: float | None = None):
         self.params = params or case.params
         self.case = case
         self.model = ReferenceModel(self.params, n_modes if n_modes is not None else case.n_modes,
@@ -47,6 +47,9 @@ class ReferenceEngine:
         self.integrator = integrator or getattr(case.solver, "integrator", "dopri5")
         if self.integrator not in INTEGRATORS:
             raise ValueError(f"integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
+        # largest step: explicit option > the case's [reference] table > the integrator's default
+        h_max = h_max if h_max is not None else case.reference.get("h_max")
+        self.h_max = float(h_max if h_max is not None else (H_MAX if self.integrator == "dopri5" else H_MAX_IMPLICIT))
         init = build_initial(case, self.params)
         self.x, self.cfg = initial_state(self.model, init)
         self.t = 0.0
@@ -90,10 +93,10 @@ class ReferenceEngine:
         u = self.u_vector(inputs)
         if self.integrator == "dopri5":
             x, h, nacc, nrej, status = core.integrate(
-                self.x, self.t, t_next, self.h, self.rtol, self.atol, H_MAX, u, *args)
+                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, u, *args)
         else:
             x, h, nacc, nrej, status = integrate_trbdf2(
-                self.x, self.t, t_next, self.h, self.rtol, self.atol, H_MAX_IMPLICIT, self._jac,
+                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, self._jac,
                 self._minv, self._work, u, *args)
         self.steps += nacc
         self.rejected += nrej
@@ -138,7 +141,7 @@ class ReferenceEngine:
         names = {"dopri5": "Dormand-Prince 5(4), embedded error control",
                  "trbdf2": "TR-BDF2 (L-stable ESDIRK), embedded 3rd-order error estimate"}
         return {"integrator": names[self.integrator], "rtol": self.rtol,
-                "h_max": H_MAX if self.integrator == "dopri5" else H_MAX_IMPLICIT,
+                "h_max": self.h_max,
                 "jacobians": int(self._work[2]),
                 "control_period": self.case.solver.control_period,
                 "n_modes": ",".join(str(n) for n in self.model.layout.n_modes),

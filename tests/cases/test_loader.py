@@ -83,6 +83,13 @@ def test_exudyn_table_sets_the_engine_discretisation(tmp_path):
     assert case.variant(True).exudyn == {"substeps": 32, "n_elements": 4}
 
 
+def test_reference_table_sets_the_largest_step(tmp_path):
+    text = edit(VALID, "n_modes = 2", 'n_modes = 2\nh_max = 2e-4\nwhy = "the ripple study"')
+    case = load_case(write(tmp_path, text, "good"))
+    assert case.reference == {"h_max": 2e-4} and case.n_modes == (2,) * 6
+    assert case.variant(True).reference == {"h_max": 2e-4}
+
+
 # (id, edit of VALID, field the error must name)
 BAD = [
     ("unknown_top_key", lambda t: edit(t, "duration = 2.0\n", 'duration = 2.0\ncolour = "red"\n'), "colour"),
@@ -134,6 +141,12 @@ BAD = [
     ("exudyn_substeps_not_integer", lambda t: t + '[exudyn]\nsubsteps = 2.5\nwhy = "a study"\n', "exudyn.substeps"),
     ("exudyn_substeps_zero", lambda t: t + '[exudyn]\nsubsteps = 0\nwhy = "a study"\n', "exudyn.substeps"),
     ("exudyn_without_why", lambda t: t + "[exudyn]\nsubsteps = 32\n", "exudyn.why"),
+    ("reference_h_max_negative", lambda t: edit(t, "n_modes = 2", 'n_modes = 2\nh_max = -1e-4\nwhy = "a study"'),
+     "reference.h_max"),
+    ("reference_h_max_text", lambda t: edit(t, "n_modes = 2", 'n_modes = 2\nh_max = "small"\nwhy = "a study"'),
+     "reference.h_max"),
+    ("reference_h_max_without_why", lambda t: edit(t, "n_modes = 2", "n_modes = 2\nh_max = 2e-4"), "reference.why"),
+    ("reference_unknown_key", lambda t: edit(t, "n_modes = 2", "n_modes = 2\nrtol = 1e-9"), "reference.rtol"),
     ("toml_syntax", lambda t: t + "this is not toml\n", "toml"),
 ]
 

@@ -15,7 +15,11 @@ Measured errors: docs/data/rigid_equivalence.json (`python -m rsmcheck.studies e
 Reaction forces: computed by Exudyn's index-1 solve at each sample (exudyn_model/reactions.py,
 not the integrator's index-3 multipliers, whose round-off floor ∝ 1/h² grows as the step
 shrinks), they are as accurate as the state and converge at second order; the grasp cases
-need the finest steps (the 92 Hz ripple carries their reactions).  `make study`: ≈ 35–45 min on 2 cores.
+need the finest steps (the 92 Hz ripple carries their reactions).  gravity_gradient's ripple
+is only 5e-11 rad: the reference resolves it with its case's h_max = 0.5 ms (below DP5's
+error scale the 1 ms steps damp it) and Exudyn with velocity-level constraints (the index-3
+Newton iteration meets its round-off floor there; rsmcheck.studies.RIGID_CASE_OPTIONS).
+`make study`: ≈ 35–45 min on 2 cores.
 """
 
 from __future__ import annotations
@@ -27,14 +31,6 @@ from rsmcheck.observables import NAMES
 from rsmcheck.studies import RIGID_REFERENCE, RIGID_SUBSTEPS, RIGID_TOLERANCE, rigid_options
 
 OBSERVABLES = [n for n in NAMES if n != "time"]
-#: (case, observable) -> why 1e-5 is out of reach, with the measured size
-KNOWN: dict[tuple[str, str], str] = {
-    ("gravity_gradient", "reaction_forces_I"):
-        "a floor of 2.7e-7 N (2.7e-5 of the 0.01 N scale floor; the tidal grasp forces reach 0.23 mN, so "
-        "1.2e-3 of them) that is not the integrator: the same at h = 31 µs (2.9e-5), 7.8 µs (2.7e-5) and with a 4× shorter control "
-        "period (2.6e-5), so not the zero-order hold of the tidal field either; cause not found yet "
-        "(docs/exudyn.md §10)",
-}
 
 
 def _jobs(case: str) -> tuple:
@@ -43,14 +39,8 @@ def _jobs(case: str) -> tuple:
 
 
 def _params():
-    out = []
-    for case in RIGID_SUBSTEPS:
-        for obs in OBSERVABLES:
-            marks = [pytest.mark.engine_runs(*_jobs(case))]
-            if (case, obs) in KNOWN:
-                marks.append(pytest.mark.xfail(strict=True, reason=KNOWN[(case, obs)]))
-            out.append(pytest.param(case, obs, marks=marks, id=f"{case}-{obs}"))
-    return out
+    return [pytest.param(case, obs, marks=[pytest.mark.engine_runs(*_jobs(case))], id=f"{case}-{obs}")
+            for case in RIGID_SUBSTEPS for obs in OBSERVABLES]
 
 
 @pytest.mark.crosscheck
