@@ -83,7 +83,7 @@ Format (every key optional unless marked):
 
     [reference]
     n_modes = 2                      # modes per link (0 = rigid), int or 6 ints
-    h_max = 2e-4                     # [s] largest DP5 step (default 0.05); needs why
+    h_max = 2e-4                     # [s] largest step (default 0.05 DP5, 1.0 TR-BDF2); needs why
     why = "..."                      # required with h_max: the study behind it
 
     [exudyn]                         # the Exudyn engine's discretisation for this case
@@ -897,7 +897,7 @@ def _reference(w: str, key: str, v: Any) -> dict[str, Any]:
     """[reference]: modes per link, and the largest DP5 step with the reason (a study)."""
     return _engine_settings(w, key, v, {
         "n_modes": lambda k, x: _modes(w, k, x),
-        "h_max": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=0.05),
+        "h_max": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
     }, needs_why=("h_max",))
 
 
