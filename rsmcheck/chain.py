@@ -19,9 +19,10 @@ Every run of a case stores its end state next to its HDF5 file, `DIR/CASE.end.js
 
 A case with `start_from = "P"` starts from the end state of P written by the same engine
 (and the same variant: full or --short) — with --short not the first phase of the short
-mission (p2: p1's short variant does not set it up), which runs from its own [initial].  When it enters an orbit the previous phase did
-not have (p3 → p4), O is placed on the case's circular orbit at the system COM
-(`rsmcheck.initial.place_on_orbit`), the same shift for the rigid and the exact state.
+mission (p2: p1's short variant does not set it up), which runs from its own [initial].
+When it enters an orbit the previous phase did not have (p3 → p4), O is placed on the
+case's circular orbit at the system COM (`rsmcheck.initial.place_on_orbit`), the same shift
+for the rigid and the exact state.
 
 The `mission` case runs its phases in sequence in memory, each phase starting from the
 previous one's end state, and writes one run file with continuous time, every phase and

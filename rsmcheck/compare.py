@@ -199,9 +199,9 @@ def _run_child(engine: str, case, duration: float, options: Mapping[str, Any]) -
 
     try:
         return _run_one(engine, case, duration, options)
+    except InputError:
+        raise
     except (TypeError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
         raise InputError(f"--{engine}", ",".join(f"{k}={v}" for k, v in options.items()) or "options",
                          str(exc)) from None
 
