@@ -89,6 +89,8 @@ Format (every key optional unless marked):
     [exudyn]                         # the Exudyn engine's discretisation for this case
     substeps = 32                    # generalized-α steps per control period (default 2)
     n_elements = 8                   # ANCF elements per link (default 8)
+    constraints = "index2"           # index3 (default) | index2 (Newmark, velocity level)
+    restart_threshold = 0.0          # input jump restarting the integrator (default 0.01)
     why = "..."                      # required with any setting: the study behind it
 
     [params]                         # overrides of rsmcheck.params.Params, by section
@@ -96,7 +98,8 @@ Format (every key optional unless marked):
     [compare.OBSERVABLE]             # engines compared on this observable (issue 5)
     tolerance = 1e-3                 # required, > 0, in the observable's unit
     why = "..."                      # required: one sentence justifying the tolerance
-    metric = "max_abs"               # max_abs | rms | final
+    metric = "max_abs"               # max_abs | rms | final | growth
+    window = [34.0, 45.0]            # growth only (required there): fit interval [s]
 
     [short]                          # the --short variant: replaces these keys
     duration = 5.0                   # (duration, segment, release, capture, controller,
@@ -131,7 +134,7 @@ OBSERVABLE_NAMES = (
 ARM_MODES = ("hold", "freeze", "move", "approach", "carry", "off", "torque")
 TARGET_MODES = ("move", "push", "com_align")
 BASE_MODES = ("hold", "freeze", "angle", "retrograde", "off")
-METRICS = ("max_abs", "rms", "final")
+METRICS = ("max_abs", "rms", "final", "growth")
 #: top-level keys a [short] table may replace
 SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare", "exudyn")
 
@@ -263,6 +266,7 @@ class CompareSpec:
     tolerance: float
     why: str
     metric: str = "max_abs"
+    window: tuple[float, float] | None = None  # metric "growth": the fit interval [s]
 
 
 @dataclass(frozen=True)
@@ -650,6 +654,10 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         _check_programme(w, kname("segment"), segments, initial.grasp)
 
     compare = _compare(w, kname("compare"), raw.get("compare", {}))
+    for c in compare:
+        if c.window is not None and c.window[1] > duration + 1e-9:
+            raise InputError(w, f"{kname('compare')}.{c.observable}.window",
+                             f"ends at {c.window[1]} s, after the run ({duration} s)")
 
     return Case(
         name=name, description=_text(w, "description", raw["description"]), duration=duration,
@@ -879,10 +887,24 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
             "tolerance": lambda kk, x: _number(w, kk, x, 0.0, lo_open=True),
             "why": lambda kk, x: _text(w, kk, x),
             "metric": lambda kk, x: _choice(w, kk, x, METRICS),
+            "window": lambda kk, x: _window(w, kk, x),
         })
         _require(w, k, c, ("tolerance", "why"))
+        if (c.get("metric") == "growth") != ("window" in c):
+            raise InputError(w, f"{k}.window", "required with metric \"growth\" and only there")
         out.append(CompareSpec(observable=obs, **c))
     return tuple(out)
+
+
+def _window(w: str, key: str, v: Any) -> tuple[float, float]:
+    """[t0, t1] with 0 ≤ t0 < t1 [s] (checked against the duration where the case is built)."""
+    if not isinstance(v, list) or len(v) != 2:
+        raise InputError(w, key, "must be a list [t0, t1] of two times in s")
+    t0 = _number(w, f"{key}[0]", v[0], 0.0)
+    t1 = _number(w, f"{key}[1]", v[1], 0.0)
+    if not t1 > t0:
+        raise InputError(w, key, f"must have t0 < t1, got [{t0}, {t1}]")
+    return (t0, t1)
 
 
 def _exudyn(w: str, key: str, v: Any) -> dict[str, Any]:
@@ -890,7 +912,9 @@ def _exudyn(w: str, key: str, v: Any) -> dict[str, Any]:
     return _engine_settings(w, key, v, {
         "substeps": lambda k, x: _integer(w, k, x, 1, 4096),
         "n_elements": lambda k, x: _integer(w, k, x, 1, 64),
-    }, needs_why=("substeps", "n_elements"))
+        "constraints": lambda k, x: _choice(w, k, x, ("index3", "index2")),
+        "restart_threshold": lambda k, x: _number(w, k, x, 0.0, hi=1.0),
+    }, needs_why=("substeps", "n_elements", "constraints", "restart_threshold"))
 
 
 def _reference(w: str, key: str, v: Any) -> dict[str, Any]:

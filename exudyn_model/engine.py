@@ -131,7 +131,8 @@ class ExudynEngine:
       rigid           rigid links (the rigid-equivalence check against the reference with 0 modes)
       n_elements      ANCF elements per link (default: the case's [exudyn] table, else 8)
       substeps        generalized-α steps per control period (h = control_period/substeps;
-                      default: the case's [exudyn] table, else 2)
+                      default: the case's [exudyn] table, else 2; so are constraints and
+                      restart_threshold)
       spectral_radius ρ∞ of generalized-α
       newton_rtol     relative Newton tolerance
       field           build the field/thrust machinery (default: when the case has an orbit)
@@ -150,8 +151,8 @@ class ExudynEngine:
                  spectral_radius: float = SPECTRAL_RADIUS_DEFAULT, newton_rtol: float = NEWTON_RTOL_DEFAULT,
                  newton_atol: float | None = None,
                  field: bool | None = None, restart_on_input_change: bool = True,
-                 stepping: str = "continuous", constraints: str = "index3", axial_damping: float = 1.0,
-                 restart_threshold: float = RESTART_THRESHOLD_DEFAULT):
+                 stepping: str = "continuous", constraints: str | None = None, axial_damping: float = 1.0,
+                 restart_threshold: float | None = None):
         self.case = case
         self.params = params or case.params
         self.rigid = bool(rigid)
@@ -168,10 +169,13 @@ class ExudynEngine:
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)
-        self.restart_threshold = float(restart_threshold)
+        self.restart_threshold = float(restart_threshold if restart_threshold is not None
+                                       else case.exudyn.get("restart_threshold", RESTART_THRESHOLD_DEFAULT))
         if stepping not in ("continuous", "period"):
             raise ValueError(f"stepping must be 'continuous' or 'period', got {stepping!r}")
         self.stepping = stepping
+        if constraints is None:
+            constraints = case.exudyn.get("constraints", "index3")
         if constraints not in ("index3", "index2"):
             raise ValueError(f"constraints must be 'index3' or 'index2', got {constraints!r}")
         self.constraints = constraints

@@ -38,3 +38,67 @@ def coupled_frequencies(case, n: int = 6, n_elements: int = links.N_ELEMENTS_DEF
     freqs, _ = engine.mbs.ComputeODE2Eigenvalues(convert2Frequencies=True, ignoreAlgebraicEquations=False)
     freqs = np.asarray(freqs)
     return freqs[freqs > f_min][:n]
+
+
+def linear_plant(case, outputs, n_inputs: int = 7, n_elements: int = links.N_ELEMENTS_DEFAULT,
+                 eps: float = 1e-7):
+    """(A, B, C) of Exudyn's model of `case` linearised at rest in its initial state (damping
+    kept): ẋ = A x + B u, y = C x, with x = (z, ż) on the null space N of the constraint
+    Jacobian (q = q₀ + N z), u = (τ_m1..6, τ_B) and y = `outputs(sensors)`.
+
+    Everything is Exudyn's own: M, G and f(q, q̇) (`exudyn_model.reactions.ConstraintForces`),
+    −∂f/∂q, −∂f/∂q̇ and the load vectors by central differences, the sensors of the engine."""
+    import scipy.linalg as sl
+
+    from exudyn_model.engine import ExudynEngine
+    from exudyn_model.reactions import ConstraintForces
+
+    engine = ExudynEngine(case, n_elements=n_elements)
+    cf = ConstraintForces(engine.mbs)
+    sd = engine.mbs.systemData
+    q0 = np.array(sd.GetODE2Coordinates())
+    v0 = np.array(sd.GetODE2Coordinates_t())
+    n = q0.size
+
+    def f(q, v):
+        sd.SetODE2Coordinates(q)
+        sd.SetODE2Coordinates_t(v)
+        return np.array(cf.rhs()[:n])
+
+    K, D = np.zeros((n, n)), np.zeros((n, n))
+    for i in range(n):
+        e = eps * max(1.0, abs(q0[i]))
+        dq = np.zeros(n)
+        dq[i] = e
+        K[:, i] = -(f(q0 + dq, v0) - f(q0 - dq, v0)) / (2 * e)
+        dv = np.zeros(n)
+        dv[i] = 10 * eps
+        D[:, i] = -(f(q0, v0 + dv) - f(q0, v0 - dv)) / (20 * eps)
+    f0 = f(q0, v0)
+    F = np.zeros((n, n_inputs))
+    for j in range(n_inputs):
+        tau = np.zeros(6)
+        tau[j % 6] = 1.0 if j < 6 else 0.0
+        engine._set_inputs((tau, 1.0 if j == 6 else 0.0, 0.0), None)
+        F[:, j] = f(q0, v0) - f0
+    engine._set_inputs((np.zeros(6), 0.0, 0.0), None)
+    G = cf.constraint_jacobian()
+    G = G[n:, :n] if G.shape[0] > n else G
+    N = sl.null_space(G)
+    Mi = np.linalg.inv(N.T @ cf.mass_matrix()[:n, :n] @ N)
+    k = N.shape[1]
+    A = np.block([[np.zeros((k, k)), np.eye(k)], [-Mi @ N.T @ K @ N, -Mi @ N.T @ D @ N]])
+    B = np.vstack([np.zeros((k, n_inputs)), Mi @ N.T @ F])
+    cols = []
+    for i in range(2 * k):
+        dz = np.zeros(2 * k)
+        dz[i] = eps
+        ys = []
+        for sign in (1.0, -1.0):
+            sd.SetODE2Coordinates(q0 + sign * N @ dz[:k])
+            sd.SetODE2Coordinates_t(v0 + sign * N @ dz[k:])
+            ys.append(outputs(engine.sensors()))
+        cols.append((ys[0] - ys[1]) / (2 * eps))
+    sd.SetODE2Coordinates(q0)
+    sd.SetODE2Coordinates_t(v0)
+    return A, B, np.array(cols).T

@@ -10,6 +10,10 @@ tolerance *in the observable's unit* (SI, radians), a `why` sentence and a metri
     max_abs   max_t max_c |a(t)_c − b(t)_c|                      (default)
     rms       max_c sqrt(mean_t (a(t)_c − b(t)_c)²)
     final     max_c |a(T)_c − b(T)_c| at the last sample
+    growth    |σ_a − σ_b| [1/s], σ the exponential growth rate of ‖·‖_∞ in the entry's
+              `window` [t0, t1] (`growth_rate`): for a loop that is meant to be unstable,
+              where the amplitude is seeded by the ripple's phase and then amplified as
+              e^{σt}, so differences of the signal itself say nothing (docs/cases.md)
 
 (a: the other engine, b: the reference; c runs over the components of the observable).
 The margin is tolerance / error: > 1 passes, and says how much room is left.
@@ -37,7 +41,10 @@ from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
 
 #: metrics a [compare] entry may ask for (cases.loader.METRICS names the same ones)
-METRICS = ("max_abs", "rms", "final")
+METRICS = ("max_abs", "rms", "final", "growth")
+
+#: number of equal blocks of the window whose maxima `growth_rate` fits
+GROWTH_BLOCKS = 10
 
 #: smallest scale of each observable [SI]: the size below which a difference means nothing
 SCALE_FLOORS: dict[str, float] = {
@@ -82,12 +89,41 @@ def _pair(reference: EngineRun, other: EngineRun, name: str, n: int) -> tuple[np
     return a, b
 
 
+def growth_rate(t: np.ndarray, x: np.ndarray, window: tuple[float, float]) -> float:
+    """Exponential growth rate σ [1/s] of the envelope of `x` (samples × components) in
+    `window`: the window is cut into `GROWTH_BLOCKS` equal closed blocks, and σ is the least-squares
+    slope of ln(max over the block of ‖x(t)‖_∞) against the block centres.  Block maxima, not
+    samples: an oscillation sampled below its frequency (the 92 Hz rotor mode at 10 Hz
+    output) has a random phase at each sample, its maximum over a block of ≥ 10 samples is
+    within a few per cent of the envelope."""
+    t0, t1 = window
+    edges = np.linspace(t0, t1, GROWTH_BLOCKS + 1)
+    mags = np.max(np.abs(x.reshape(t.size, -1)), axis=1)
+    centres, logs = [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (t >= lo - 1e-9) & (t <= hi + 1e-9)  # closed: a sample on an edge is in both blocks
+        if not np.any(sel):
+            raise ValueError(f"growth window [{t0}, {t1}] s: no sample in [{lo:.6g}, {hi:.6g}] s")
+        peak = float(np.max(mags[sel]))
+        if not peak > 0.0:
+            return float("nan")
+        centres.append(0.5 * (lo + hi))
+        logs.append(math.log(peak))
+    return float(np.polyfit(centres, logs, 1)[0])
+
+
 def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = "max_abs",
-               case: str = "") -> tuple[float, float, int]:
+               case: str = "", window: tuple[float, float] | None = None) -> tuple[float, float, int]:
     """(error, time of the worst sample, worst component) of observable `name` by `metric`,
-    in the observable's unit.  `worst_time` is NaN for `rms`."""
+    in the observable's unit (1/s for `growth`, which needs `window`).  `worst_time` is NaN
+    for `rms` and `growth`."""
     t = _same_times(case, reference, other)
     a, b = _pair(reference, other, name, t.size)
+    if metric == "growth":
+        if window is None:
+            raise ValueError("metric 'growth' needs a window [t0, t1]")
+        d = abs(growth_rate(t, a, window) - growth_rate(t, b, window))
+        return (d if math.isfinite(d) else float("inf")), float("nan"), 0
     d = np.abs(a - b)
     if not d.size:
         return 0.0, float("nan"), 0
@@ -139,12 +175,17 @@ class Check(_Verdict):
     worst_time: float = float("nan")
     worst_component: int = 0
     reference_range: float = 0.0  # max_t ‖b(t)‖_∞: the size of the observable in the reference
+    #: metric `growth`: σ [1/s] of each run ("reference", "other")
+    growth_rates: Mapping[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"case": self.case, "observable": self.observable, "error": _finite(self.error),
-                "tolerance": self.tolerance, "margin": _finite(self.margin), "pass": self.passed,
-                "metric": self.metric, "why": self.why, "worst_time": _finite(self.worst_time),
-                "worst_component": self.worst_component, "reference_range": _finite(self.reference_range)}
+        out = {"case": self.case, "observable": self.observable, "error": _finite(self.error),
+               "tolerance": self.tolerance, "margin": _finite(self.margin), "pass": self.passed,
+               "metric": self.metric, "why": self.why, "worst_time": _finite(self.worst_time),
+               "worst_component": self.worst_component, "reference_range": _finite(self.reference_range)}
+        if self.growth_rates:
+            out["growth_rates"] = {k: _finite(v) for k, v in self.growth_rates.items()}
+        return out
 
 
 def _finite(x: float) -> float | str | None:
@@ -161,10 +202,12 @@ def check_runs(case, reference: EngineRun, other: EngineRun) -> list[Check]:
     rows = []
     t = _same_times(case.name, reference, other)
     for spec in case.compare:
-        err, tw, c = difference(reference, other, spec.observable, spec.metric, case.name)
-        _, b = _pair(reference, other, spec.observable, t.size)
+        err, tw, c = difference(reference, other, spec.observable, spec.metric, case.name, spec.window)
+        a, b = _pair(reference, other, spec.observable, t.size)
+        rates = ({"reference": growth_rate(t, b, spec.window), "other": growth_rate(t, a, spec.window)}
+                 if spec.metric == "growth" else {})
         rows.append(Check(case.name, spec.observable, err, float(spec.tolerance), spec.metric, spec.why,
-                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0))
+                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates))
     return rows
 
 

@@ -92,22 +92,40 @@ def modal_case(case):
 def reference_coupled_hz(case, n: int = N_ARM_MODES, n_modes=None) -> np.ndarray:
     """The first `n` oscillatory frequencies [Hz] of the reference linearised at the initial
     state of `case` (use `modal_case` first), by central differences of its ODE."""
+    jac, _, _ = reference_linear_plant(case, lambda s: np.zeros(0), n_modes=n_modes)
+    lam = np.linalg.eigvals(jac)
+    return np.sort(np.abs(lam.imag[lam.imag > 2 * np.pi]))[:n] / (2 * np.pi)
+
+
+def reference_linear_plant(case, outputs, n_inputs: int = 7, n_modes=None, eps: float = 1e-7):
+    """(A, B, C) of the reference linearised at the initial state of `case` (damping kept):
+    ẋ = A x + B u on x = (Y*, Ẏ*), u = (τ_m1..6, τ_B), y = `outputs(sensors)`; central
+    differences of its ODE and of its sensors (the counterpart of
+    `exudyn_model.modes.linear_plant`)."""
     from reference_model import core
     from reference_model.engine import ReferenceEngine
 
     ref = ReferenceEngine(case, n_modes=n_modes)
     model, x0, cfg = ref.model, ref.x.copy(), ref.cfg
     m = 2 * model.layout.ns
-    u = np.zeros(core.N_INPUTS)
-    jac = np.zeros((m, m))
+    u0 = np.zeros(core.N_INPUTS)
+    A, B, cols = np.zeros((m, m)), np.zeros((m, n_inputs)), []
     for i in range(m):
-        e = 1e-7 * max(1.0, abs(x0[i]))
-        xp, xm = x0.copy(), x0.copy()
-        xp[i] += e
-        xm[i] -= e
-        jac[:, i] = (model.rhs(xp, u, cfg)[:m] - model.rhs(xm, u, cfg)[:m]) / (2 * e)
-    lam = np.linalg.eigvals(jac)
-    return np.sort(np.abs(lam.imag[lam.imag > 2 * np.pi]))[:n] / (2 * np.pi)
+        e = eps * max(1.0, abs(x0[i]))
+        dx = np.zeros_like(x0)
+        dx[i] = e
+        A[:, i] = (model.rhs(x0 + dx, u0, cfg)[:m] - model.rhs(x0 - dx, u0, cfg)[:m]) / (2 * e)
+        ys = []
+        for sign in (1.0, -1.0):
+            ref.x = x0 + sign * dx
+            ys.append(outputs(ref.sensors()))
+        cols.append((ys[0] - ys[1]) / (2 * e))
+    ref.x = x0
+    for j in range(n_inputs):
+        u = u0.copy()
+        u[core.U_TAU_M + j if j < 6 else core.U_TAU_B] = 1.0
+        B[:, j] = model.rhs(x0, u, cfg)[:m] - model.rhs(x0, u0, cfg)[:m]
+    return A, B, np.array(cols).T
 
 
 def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n: int = N_ARM_MODES,

@@ -83,12 +83,27 @@ def test_exudyn_table_sets_the_engine_discretisation(tmp_path):
     assert case.variant(True).exudyn == {"substeps": 32, "n_elements": 4}
 
 
+def test_exudyn_table_sets_the_integrator(tmp_path):
+    text = VALID + '[exudyn]\nconstraints = "index2"\nrestart_threshold = 0.0\nwhy = "the ZOH study"\n'
+    case = load_case(write(tmp_path, text, "good"))
+    assert case.exudyn == {"constraints": "index2", "restart_threshold": 0.0}
+
+
+def test_growth_metric_takes_a_window(tmp_path):
+    text = VALID + '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nmetric = "growth"\nwindow = [0.2, 0.9]\n'
+    case = load_case(write(tmp_path, text, "good"))
+    (spec,) = case.compare
+    assert (spec.metric, spec.window) == ("growth", (0.2, 0.9))
+
+
 def test_reference_table_sets_the_largest_step(tmp_path):
     text = edit(VALID, "n_modes = 2", 'n_modes = 2\nh_max = 2e-4\nwhy = "the ripple study"')
     case = load_case(write(tmp_path, text, "good"))
     assert case.reference == {"h_max": 2e-4} and case.n_modes == (2,) * 6
     assert case.variant(True).reference == {"h_max": 2e-4}
 
+
+GROWTH = '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nmetric = "growth"\n'
 
 # (id, edit of VALID, field the error must name)
 BAD = [
@@ -147,6 +162,19 @@ BAD = [
      "reference.h_max"),
     ("reference_h_max_without_why", lambda t: edit(t, "n_modes = 2", "n_modes = 2\nh_max = 2e-4"), "reference.why"),
     ("reference_unknown_key", lambda t: edit(t, "n_modes = 2", "n_modes = 2\nrtol = 1e-9"), "reference.rtol"),
+    ("exudyn_constraints_unknown", lambda t: t + '[exudyn]\nconstraints = "index1"\nwhy = "a study"\n',
+     "exudyn.constraints"),
+    ("exudyn_restart_negative", lambda t: t + '[exudyn]\nrestart_threshold = -0.1\nwhy = "a study"\n',
+     "exudyn.restart_threshold"),
+    ("exudyn_constraints_without_why", lambda t: t + '[exudyn]\nconstraints = "index2"\n', "exudyn.why"),
+    ("growth_without_window", lambda t: t + GROWTH, "compare.motor_torques.window"),
+    ("window_without_growth",
+     lambda t: t + '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nwindow = [0.5, 1.0]\n',
+     "compare.motor_torques.window"),
+    ("window_reversed", lambda t: t + GROWTH + "window = [1.5, 0.5]\n", "compare.motor_torques.window"),
+    ("window_not_a_pair", lambda t: t + GROWTH + "window = [0.5]\n", "compare.motor_torques.window"),
+    ("window_text", lambda t: t + GROWTH + 'window = [0.5, "end"]\n', "compare.motor_torques.window"),
+    ("window_after_the_run", lambda t: t + GROWTH + "window = [0.5, 3.0]\n", "compare.motor_torques.window"),
     ("toml_syntax", lambda t: t + "this is not toml\n", "toml"),
 ]
 

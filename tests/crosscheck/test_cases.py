@@ -24,14 +24,6 @@ KNOWN: dict[tuple[str, str], str] = {
         "engines' rotor-mode frequencies differ by δ = 1e-6 … 3.4e-5 (FE vs 2-mode links, EA = 1e5·EI; "
         "rsmcheck.modes at this configuration), ≤ 2e-5 rad; measured 2.1e-5 rad (tolerance 1e-6); with "
         "EA = 1e6·EI and h = 7.8 µs 3.3e-6",
-    ("p1_rigid_gains", "ee2_speed"):
-        "the case's point is a marginally unstable rotor mode (reference σ ≈ +0.45/s with 2 modes, +0.34 with 4, "
-        "+0.30 with 6, converging): Exudyn does not show it; ee2_speed differs by 0.35 m/s at t = 50 s "
-        "(tolerance 2e-4 m/s) at h = 0.5 ms, at 125 µs with and without the axial damping, and at 0.5 and 0.25 ms "
-        "with ρ∞ = 1 (no numerical dissipation): not the integrator's dissipation alone (EA = 1e5·EI); the "
-        "open-loop damped rotor modes of both engines agree (σ within 2.4e-3/s), so the closed loop differs "
-        "(Exudyn's arm-2 rotor content grows at ≈ +0.14/s from a 100× smaller level); unexplained, "
-        "docs/exudyn.md §10",
     ("release", "reaction_forces_I"):
         "after the release the reaction of grasp 1 rings on the 30–36 Hz and 120 Hz arm modes and the 92 Hz "
         "rotor modes; the engines' frequencies of those differ by 1e-6 … 1.6e-4 (FE vs 2-mode links, EA = 1e5·EI; "

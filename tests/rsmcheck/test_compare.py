@@ -13,7 +13,7 @@ import pytest
 from cases.loader import CompareSpec, list_cases, load_case
 from rsmcheck.cli import main
 from rsmcheck.compare import (METRICS, SCALE_FLOORS, Check, check_runs, compare_runs, difference,
-                              relative_errors)
+                              growth_rate, relative_errors)
 from rsmcheck.observables import NAMES, allocate
 from rsmcheck.store import EngineRun
 
@@ -44,6 +44,40 @@ def test_max_abs_rms_final():
     assert (err, t, c) == (pytest.approx(1e-3), pytest.approx(0.04), 5)
     err, t, c = difference(ref, other, "joint_angles", "rms")
     assert err == pytest.approx(3e-3 / math.sqrt(5)) and c == 2 and math.isnan(t)
+
+
+def test_growth_rate_of_a_sampled_oscillation():
+    """σ of e^{σt}·|sin(2π·92 t)| sampled at 10 Hz (the rotor mode in p1_rigid_gains' output):
+    the block maxima recover σ; two runs with different σ differ by exactly that."""
+    t = np.arange(0.0, 20.0 + 1e-9, 0.1)
+    osc = np.abs(np.sin(2 * np.pi * 92.0 * t + 0.3)) + 0.0  # phase at each sample: random-like
+    runs = {}
+    for name, sigma in (("reference", 0.55), ("exudyn", 0.45)):
+        obs = allocate(t.size)
+        obs["time"] = t
+        obs["motor_torques"][:, 4] = 1e-3 * np.exp(sigma * t) * osc
+        runs[name] = EngineRun(engine=name, observables=obs)
+    assert growth_rate(t, runs["reference"].observables["motor_torques"], (8.0, 18.0)) == pytest.approx(0.55, abs=0.01)
+    err, tw, c = difference(runs["reference"], runs["exudyn"], "motor_torques", "growth", window=(8.0, 18.0))
+    assert err == pytest.approx(0.10, abs=0.01) and math.isnan(tw)
+    with pytest.raises(ValueError, match="window"):
+        difference(runs["reference"], runs["exudyn"], "motor_torques", "growth")
+    with pytest.raises(ValueError, match="no sample"):
+        growth_rate(t, runs["reference"].observables["motor_torques"], (30.0, 40.0))
+
+
+def test_growth_check_reports_both_rates():
+    t = np.arange(0.0, 10.0 + 1e-9, 0.01)
+    ref = make_run("reference", n=t.size, ee2_speed=np.exp(0.5 * t))
+    other = make_run("exudyn", n=t.size, ee2_speed=np.exp(0.2 * t))
+    ref.observables["time"] = other.observables["time"] = t
+    spec = CompareSpec("ee2_speed", 0.02, "w", "growth", (2.0, 8.0))
+    case = dataclasses.replace(load_case(list_cases()[0]), compare=(spec,))
+    (row,) = check_runs(case, ref, other)
+    assert row.error == pytest.approx(0.3, rel=1e-6) and not row.passed
+    d = row.as_dict()
+    assert d["growth_rates"]["reference"] == pytest.approx(0.5) and d["growth_rates"]["other"] == pytest.approx(0.2)
+    json.dumps(d, allow_nan=False)
 
 
 def test_scalar_observable_and_non_finite():

@@ -1,0 +1,128 @@
+"""The sampled closed loop of a programme case, linearised: growth rates of its modes in
+both engines (docs/exudyn.md §10, p1_rigid_gains).
+
+Each engine supplies its own continuous plant at rest in the case's initial configuration
+(orbit off): ẋ = A x + B u, y = C x (`rsmcheck.modes.reference_linear_plant`,
+`exudyn_model.modes.linear_plant`).  The rest is the shared controller's laws
+(rsmcheck.controllers, physics.md §6), linearised about a hold of that configuration:
+
+    r_k = (1 − α) r_{k−1} + α θ̇_J(t_k)                 rate filter, α = 1 − e^{−2π f_c Δt}
+    τ_k = −J_EEᵀ K_p e_EE(t_k) − K_d r_k (each arm),     eq. (14)
+    τ_B,k = −k_p θ_B(t_k) − k_d θ̇_B(t_k)                 eq. (13)
+
+held over [t_k, t_k+Δt) (zero-order hold), so that with Φ = e^{AΔt}, Γ = ∫₀^Δt e^{As} ds B
+(one matrix exponential of [[A, B], [0, 0]]Δt) the loop is x_{k+1} = Φ x_k + Γ u_k.  The
+closed-loop multipliers μ of [x_k, r_{k−1}] give s = ln μ / Δt: σ = Re s [1/s], f = Im s/2π.
+The saturation is left out (a linear analysis).
+
+    python -m rsmcheck.closed_loop [CASE] [--modes N] [--elements N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+
+import numpy as np
+
+from rsmcheck.controllers import ArmModel, measure
+
+N_INPUTS = 7  # τ_m1..6, τ_B
+#: y = [θ_J (6), θ̇_J (6), x, y, φ of end effector 1 and 2 in the base frame (6), θ_B, θ̇_B]
+I_RATES = slice(6, 12)
+I_EE = 12
+I_BASE = 18
+
+
+def _outputs(arms):
+    def outputs(s) -> np.ndarray:
+        m = measure(s, arms, "measured")
+        return np.concatenate([s.joint_angles, s.joint_rates, m.ee_B[0], m.ee_B[1],
+                               [s.base_pose_I[2], s.base_rate_I[2]]])
+    return outputs
+
+
+def at_rest(case):
+    """`case` at rest in its initial configuration, orbit off (damping kept)."""
+    from cases.loader import OrbitSpec
+
+    ini = dataclasses.replace(case.initial, base_rate=(0.0, 0.0, 0.0), joint_rates=(0.0,) * 6)
+    return dataclasses.replace(case, initial=ini, orbit=False, orbit_spec=OrbitSpec())
+
+
+def controller_gains(case, joint_angles) -> tuple[np.ndarray, np.ndarray, float]:
+    """(K_y, K_r, α): τ = −K_y y − K_r r of the hold (eqs. 13, 14 linearised), filter α."""
+    spec, params = case.controller, case.params
+    dt = case.solver.control_period
+    ky, kr = np.zeros((N_INPUTS, 20)), np.zeros((N_INPUTS, 6))
+    for k, gains in enumerate((spec.arm1, spec.arm2)):
+        jac = ArmModel(params, k).jacobian(np.asarray(joint_angles[3 * k:3 * k + 3]))
+        ky[3 * k:3 * k + 3, I_EE + 3 * k:I_EE + 3 * k + 3] = jac.T @ np.diag(gains.kp)
+        kr[3 * k:3 * k + 3, 3 * k:3 * k + 3] = np.diag(gains.kd)
+    ky[6, I_BASE], ky[6, I_BASE + 1] = spec.base.kp, spec.base.kd
+    fc = spec.rate_filter_hz
+    alpha = 1.0 - math.exp(-2.0 * math.pi * fc * dt) if fc > 0 else 1.0
+    return ky, kr, alpha
+
+
+def closed_loop_exponents(A, B, C, ky, kr, alpha: float, dt: float) -> np.ndarray:
+    """s = ln μ / Δt of the sampled loop (module docstring)."""
+    from scipy.linalg import expm
+
+    n = A.shape[0]
+    aug = expm(np.block([[A, B], [np.zeros((N_INPUTS, n + N_INPUTS))]]) * dt)
+    phi, gam = aug[:n, :n], aug[:n, n:]
+    cr = C[I_RATES]
+    # r_k = (1−α) r_{k−1} + α C_r x_k;  x_{k+1} = Φ x_k − Γ (K_y C x_k + K_r r_k)
+    top = np.hstack([phi - gam @ ky @ C - alpha * gam @ kr @ cr, -(1 - alpha) * gam @ kr])
+    bottom = np.hstack([alpha * cr, (1 - alpha) * np.eye(6)])
+    mu = np.linalg.eigvals(np.vstack([top, bottom]))
+    return np.log(mu.astype(complex)) / dt
+
+
+def rotor_modes(s: np.ndarray, f_lo: float = 60.0, f_hi: float = 130.0, sigma_max: float = 10.0) -> np.ndarray:
+    """The lightly damped exponents with f in [f_lo, f_hi] Hz (the 92 Hz rotor modes), by
+    frequency (the axial modes alias into the band but decay at ~1e4/s)."""
+    keep = (s.imag > 2 * np.pi * f_lo) & (s.imag < 2 * np.pi * f_hi) & (np.abs(s.real) < sigma_max)
+    s = s[keep]
+    return s[np.argsort(s.imag)]
+
+
+def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
+    """Closed-loop rotor-mode exponents of `case` (at rest, initial configuration) in both
+    engines: {"reference": s, "exudyn": s}."""
+    from exudyn_model.modes import linear_plant
+    from rsmcheck.modes import reference_linear_plant
+
+    case = at_rest(case)
+    arms = (ArmModel(case.params, 0), ArmModel(case.params, 1))
+    outputs = _outputs(arms)
+    q_joint = np.radians(case.initial.joint_angles_deg)
+    ky, kr, alpha = controller_gains(case, q_joint)
+    dt = case.solver.control_period
+    out = {}
+    for name, plant in (("reference", lambda: reference_linear_plant(case, outputs, N_INPUTS, n_modes)),
+                        ("exudyn", lambda: linear_plant(case, outputs, N_INPUTS, n_elements))):
+        out[name] = rotor_modes(closed_loop_exponents(*plant(), ky, kr, alpha, dt))
+    return out
+
+
+def main(argv=None) -> int:
+    from cases.loader import load_case
+
+    p = argparse.ArgumentParser(prog="python -m rsmcheck.closed_loop", description=__doc__.split("\n")[0])
+    p.add_argument("case", nargs="?", default="p1_rigid_gains")
+    p.add_argument("--modes", type=int, default=None, help="reference modes per link (default: the case's)")
+    p.add_argument("--elements", type=int, default=8, help="Exudyn ANCF elements per link")
+    args = p.parse_args(argv)
+    res = analyse(load_case(args.case), args.modes, args.elements)
+    print(f"{args.case}: closed-loop rotor modes at rest in the initial configuration")
+    print(f"{'f_ref [Hz]':>11s} {'σ_ref [1/s]':>12s} {'f_exu [Hz]':>11s} {'σ_exu [1/s]':>12s}")
+    for a, b in zip(res["reference"], res["exudyn"]):
+        print(f"{a.imag / 2 / np.pi:11.4f} {a.real:+12.5f} {b.imag / 2 / np.pi:11.4f} {b.real:+12.5f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
