@@ -77,8 +77,7 @@ def linear_plant(case, outputs, n_inputs: int = 7, n_elements: int = links.N_ELE
     f0 = f(q0, v0)
     F = np.zeros((n, n_inputs))
     for j in range(n_inputs):
-        tau = np.zeros(6)
-        tau[j % 6] = 1.0 if j < 6 else 0.0
+        tau = np.eye(6)[j] if j < 6 else np.zeros(6)  # a unit motor torque, or the base torque
         engine._set_inputs((tau, 1.0 if j == 6 else 0.0, 0.0), None)
         F[:, j] = f(q0, v0) - f0
     engine._set_inputs((np.zeros(6), 0.0, 0.0), None)
