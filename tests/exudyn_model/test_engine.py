@@ -194,8 +194,8 @@ def test_intervals_other_than_the_control_period(free_drift, stepping):
 
 def test_case_exudyn_table_sets_the_step_and_options_override_it():
     case = load_case("motor_step")
-    assert case.exudyn["substeps"] == 32
-    assert ExudynEngine(case, rigid=True).substeps == 32
+    assert case.exudyn["substeps"] == 256
+    assert ExudynEngine(case, rigid=True).substeps == 256
     assert ExudynEngine(case, rigid=True, substeps=4).substeps == 4
     assert ExudynEngine(load_case("free_drift"), rigid=True).substeps == 2  # no table: the default
 
