@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
-from rsmcheck.errors import InputError, SimulationDiverged
+from rsmcheck.errors import InputError, exit_code
 
 ENGINES = ("reference", "exudyn")
 
@@ -257,17 +257,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = argparse.Namespace(command=argv[0], rest=argv[1:])
     else:
         args = build_parser().parse_args(argv)
-    try:
-        return COMMANDS[args.command](args)
-    except InputError as exc:
-        sys.stderr.write(f"rsmcheck: {exc}\n")
-        return 2
-    except SimulationDiverged as exc:
-        sys.stderr.write(f"rsmcheck: {exc}\n")
-        return 1
-    except KeyboardInterrupt:
-        sys.stderr.write("rsmcheck: interrupted\n")
-        return 130
+    return exit_code("rsmcheck", lambda: COMMANDS[args.command](args))
 
 
 if __name__ == "__main__":

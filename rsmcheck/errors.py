@@ -8,6 +8,9 @@ finite or bounded; it carries the time, the phase and the quantity that blew up.
 
 from __future__ import annotations
 
+import sys
+from typing import Callable
+
 
 class InputError(ValueError):
     """Bad user input: `where` names the file (or source) and `field` the key."""
@@ -39,3 +42,19 @@ class SimulationDiverged(RuntimeError):
 
     def __reduce__(self):
         return (type(self), (self.engine, self.time, self.phase, self.quantity, self.value))
+
+
+def exit_code(prog: str, action: Callable[[], int]) -> int:
+    """Run a command's `action` and return its exit code; a bad input is one line on stderr
+    and 2, a diverged simulation one line and 1, an interrupt 130 (no traceback)."""
+    try:
+        return action()
+    except InputError as exc:
+        sys.stderr.write(f"{prog}: {exc}\n")
+        return 2
+    except SimulationDiverged as exc:
+        sys.stderr.write(f"{prog}: {exc}\n")
+        return 1
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{prog}: interrupted\n")
+        return 130

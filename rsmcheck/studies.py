@@ -9,8 +9,12 @@
 * `convergence_study`: flexible links, reference with 1…4 modes per link against Exudyn
   with 2…16 ANCF elements per link, every observable: the difference shrinks as both
   discretisations converge, down to the integrator floor.
+* `refinement_study`: the rows of a case's own `[compare]` table (error against its
+  tolerance) for reference modes × Exudyn (step, EA/EI): which refinement of which engine
+  brings a case to its tolerance (docs/exudyn.md §8, motor_step and release).
 
-Run: `python -m rsmcheck.studies rigid [CASE…]`, `python -m rsmcheck.studies convergence`.
+Run: `python -m rsmcheck.studies rigid [CASE…]`, `python -m rsmcheck.studies convergence`,
+`python -m rsmcheck.studies refinement CASE --modes 2,4 --exudyn 32:1e5,256:1e6`.
 The Exudyn numbers come from Exudyn alone (`exudyn_model` never imports the reference);
 this module only compares the two.
 """
@@ -28,6 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from rsmcheck.compare import SCALE_FLOORS, compare_runs
+from rsmcheck.errors import exit_code
 from rsmcheck.observables import NAMES
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "docs" / "data"
@@ -200,12 +205,71 @@ def convergence_study(case_name: str = "flex_arm_step", modes: Sequence[int] = (
     return doc
 
 
+def refinement_study(case_name: str, modes: Sequence[int], exudyn: Sequence[tuple[int, float]],
+                     short: bool = True, out: Path | None = None, log=None) -> dict[str, Any]:
+    """The case's `[compare]` rows (error, tolerance) for every (reference modes, Exudyn
+    (substeps, EA/EI)): the EA/EI of the Exudyn links replaces the case's
+    `params.link.axial_to_bending` (the reference is axially rigid and ignores it)."""
+    from dataclasses import replace
+
+    from cases.loader import load_case
+    from rsmcheck.compare import check_runs
+
+    case = load_case(case_name).variant(short)
+    doc: dict[str, Any] = {"study": "refinement: the case's [compare] rows, reference modes x Exudyn (substeps, EA/EI)",
+                           "case": case_name, "short": short, "duration": case.duration,
+                           "control_period": case.solver.control_period, "modes": list(modes),
+                           "exudyn": [{"substeps": s, "h": case.solver.control_period / s, "axial_to_bending": ea}
+                                      for s, ea in exudyn],
+                           "tolerances": {c.observable: c.tolerance for c in case.compare},
+                           "reference_wall_s": {}, "exudyn_wall_s": {}, "errors": {}}
+    refs = {}
+    for n in modes:
+        refs[n], doc["reference_wall_s"][str(n)] = _run("reference", case, case.duration, n_modes=n)
+    for s, ea in exudyn:
+        p = case.params
+        params = replace(p, link=replace(p.link, axial_to_bending=ea))
+        exu, w = _run("exudyn", case, case.duration, substeps=s, params=params)
+        doc["exudyn_wall_s"][f"{s},{ea:g}"] = w
+        for n in modes:
+            rows = check_runs(case, refs[n], exu)
+            doc["errors"][f"{n},{s},{ea:g}"] = {r.observable: r.error for r in rows}
+            if log:
+                log(f"{case_name} modes={n} substeps={s} EA/EI={ea:g}: "
+                    + "  ".join(f"{r.observable} {r.error:.2e}/{r.tolerance:g}" for r in rows))
+        _write(out, doc)
+    return doc
+
+
+def _exudyn_grid(text: str) -> list[tuple[int, float]]:
+    """'32:1e5,256:1e6' -> [(32, 1e5), (256, 1e6)] (an argparse type: a bad item is a
+    one-line usage error)."""
+    grid = []
+    for item in text.split(","):
+        s, _, ea = item.partition(":")
+        try:
+            pair = (int(s), float(ea))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{item!r} is not SUBSTEPS:EA/EI (e.g. 256:1e6)") from None
+        if pair[0] < 1 or not math.isfinite(pair[1]) or pair[1] <= 0:
+            raise argparse.ArgumentTypeError(f"{item!r}: substeps must be ≥ 1 and EA/EI finite and > 0")
+        grid.append(pair)
+    return grid
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of integers") from None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m rsmcheck.studies")
     sub = p.add_subparsers(dest="study", required=True)
     r = sub.add_parser("rigid")
     r.add_argument("cases", nargs="*", default=list(FEATURE_CASES))
-    r.add_argument("--substeps", default="2,4,8,16,32,64")
+    r.add_argument("--substeps", type=_int_list, default=[2, 4, 8, 16, 32, 64])
     r.add_argument("--duration", type=float)
     r.add_argument("--constraints", default="index3", choices=("index3", "index2"))
     r.add_argument("--out")
@@ -214,27 +278,39 @@ def main(argv: Sequence[str] | None = None) -> int:
     q.add_argument("--out", default=str(DATA_DIR / "rigid_equivalence.json"))
     c = sub.add_parser("convergence")
     c.add_argument("case", nargs="?", default="flex_arm_step")
-    c.add_argument("--modes", default="1,2,3,4")
-    c.add_argument("--elements", default="2,4,8,16")
+    c.add_argument("--modes", type=_int_list, default=[1, 2, 3, 4])
+    c.add_argument("--elements", type=_int_list, default=[2, 4, 8, 16])
     c.add_argument("--substeps", type=int)
     c.add_argument("--duration", type=float)
     c.add_argument("--out")
+    f = sub.add_parser("refinement")
+    f.add_argument("case")
+    f.add_argument("--modes", type=_int_list, default=[2, 4, 6])
+    f.add_argument("--exudyn", type=_exudyn_grid, default=_exudyn_grid("32:1e5,128:1e5,128:1e6,256:1e6"),
+                   help="SUBSTEPS:EA/EI pairs, comma-separated")
+    f.add_argument("--out")
     a = p.parse_args(argv)
 
     def log(msg: str) -> None:
         print(msg, flush=True)
 
-    if a.study == "equivalence":
-        rigid_equivalence(a.cases, out=Path(a.out), log=log)
-    elif a.study == "rigid":
-        out = Path(a.out) if a.out else DATA_DIR / f"rigid_steps_{a.constraints}.json"
-        rigid_step_study(a.cases, [int(s) for s in a.substeps.split(",")], duration=a.duration,
-                         out=out, log=log, exudyn_options={"constraints": a.constraints})
-    else:
-        out = Path(a.out) if a.out else DATA_DIR / f"convergence_{a.case}.json"
-        convergence_study(a.case, [int(s) for s in a.modes.split(",")], [int(s) for s in a.elements.split(",")],
-                          substeps=a.substeps, duration=a.duration, out=out, log=log)
-    return 0
+    def dispatch() -> int:
+        if a.study == "equivalence":
+            rigid_equivalence(a.cases, out=Path(a.out), log=log)
+        elif a.study == "rigid":
+            out = Path(a.out) if a.out else DATA_DIR / f"rigid_steps_{a.constraints}.json"
+            rigid_step_study(a.cases, a.substeps, duration=a.duration,
+                             out=out, log=log, exudyn_options={"constraints": a.constraints})
+        elif a.study == "refinement":
+            out = Path(a.out) if a.out else DATA_DIR / f"refinement_{a.case}.json"
+            refinement_study(a.case, a.modes, a.exudyn, out=out, log=log)
+        else:
+            out = Path(a.out) if a.out else DATA_DIR / f"convergence_{a.case}.json"
+            convergence_study(a.case, a.modes, a.elements,
+                              substeps=a.substeps, duration=a.duration, out=out, log=log)
+        return 0
+
+    return exit_code("rsmcheck.studies", dispatch)
 
 
 if __name__ == "__main__":
