@@ -71,6 +71,12 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], left: int = 1) 
     return f"<table><tr>{th}</tr>{body}</table>"
 
 
+def _cell(error: float, tolerance: float) -> str:
+    """An error against its tolerance: red when above it (or not a number)."""
+    text = _fmt(error)
+    return text if error <= tolerance else f"<span class='fail'>{text}</span>"
+
+
 def _fmt(x: float) -> str:
     if x != x:
         return "–"
@@ -166,6 +172,23 @@ def _studies_html(data_dir: Path = DATA_DIR) -> str:
             parts.append(f"<h3>Flexible convergence, {html.escape(doc.get('case', ''))} ({doc.get('duration')} s, "
                          f"h = {doc.get('h', 0) * 1e3:.3g} ms): {obs}</h3>"
                          + _table(["reference modes ↓ / Exudyn elements →"] + [str(m) for m in elements], rows))
+    for path in sorted(data_dir.glob("refinement_*.json")):
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        tols = doc.get("tolerances", {})
+        settings = [f"{e['substeps']},{e['axial_to_bending']:g}" for e in doc.get("exudyn", [])]
+        rows = []
+        for n in doc.get("modes", []):
+            for key, e in zip(settings, doc.get("exudyn", [])):
+                errs = doc["errors"].get(f"{n},{key}", {})
+                rows.append([str(n), f"{e['h'] * 1e6:.3g}", f"{e['axial_to_bending']:.0e}"]
+                            + [_cell(errs.get(obs, float("nan")), tol) for obs, tol in tols.items()])
+        parts.append(f"<h3>Refinement, {html.escape(doc.get('case', ''))} ({doc.get('duration')} s): the case's "
+                     "[compare] rows, error in the observable's unit (red: above the tolerance)</h3>"
+                     + _table(["reference modes", "Exudyn h [µs]", "EA/EI"]
+                              + [f"{html.escape(o)} (≤ {t:g})" for o, t in tols.items()], rows, left=3))
     if not parts:
         return ""
     return ("<h2 id='studies'>Engine studies (stored results, docs/data)</h2><p>From "
