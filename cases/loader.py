@@ -91,6 +91,7 @@ Format (every key optional unless marked):
     n_elements = 8                   # ANCF elements per link (default 8)
     constraints = "index2"           # index3 (default) | index2 (Newmark, velocity level)
     restart_threshold = 0.0          # input jump restarting the integrator (default 0.01)
+    newton_atol = 1e-3               # [N] absolute Newton tolerance (default 1000·ε·EA)
     why = "..."                      # required with any setting: the study behind it
 
     [params]                         # overrides of rsmcheck.params.Params, by section
@@ -914,7 +915,8 @@ def _exudyn(w: str, key: str, v: Any) -> dict[str, Any]:
         "n_elements": lambda k, x: _integer(w, k, x, 1, 64),
         "constraints": lambda k, x: _choice(w, k, x, ("index3", "index2")),
         "restart_threshold": lambda k, x: _number(w, k, x, 0.0, hi=1.0),
-    }, needs_why=("substeps", "n_elements", "constraints", "restart_threshold"))
+        "newton_atol": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
+    }, needs_why=("substeps", "n_elements", "constraints", "restart_threshold", "newton_atol"))
 
 
 def _reference(w: str, key: str, v: Any) -> dict[str, Any]:

@@ -142,6 +142,8 @@ class ExudynEngine:
                       multipliers (reaction forces) have a round-off floor ∝ 1/h, not 1/h²
       axial_damping   factor on the axial Kelvin–Voigt damping η·EA of the links (default 1)
       restart_threshold  input jump (fraction of its limit) that restarts the integrator
+      newton_atol     absolute Newton tolerance [N] (default: the case's [exudyn] table, else
+                      1000·ε·EA for flexible links, 1e-10 N for rigid ones)
     """
 
     name = "exudyn"
@@ -163,9 +165,10 @@ class ExudynEngine:
         self.spectral_radius = float(spectral_radius)
         self.newton_rtol = float(newton_rtol)
         p = self.params
-        self.newton_atol = float(newton_atol if newton_atol is not None else
-                                 (NEWTON_ATOL_RIGID if self.rigid
-                                  else NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
+        if newton_atol is None:
+            newton_atol = (NEWTON_ATOL_RIGID if self.rigid
+                           else case.exudyn.get("newton_atol", NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
+        self.newton_atol = float(newton_atol)
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)

@@ -84,9 +84,10 @@ def test_exudyn_table_sets_the_engine_discretisation(tmp_path):
 
 
 def test_exudyn_table_sets_the_integrator(tmp_path):
-    text = VALID + '[exudyn]\nconstraints = "index2"\nrestart_threshold = 0.0\nwhy = "the ZOH study"\n'
+    text = (VALID + '[exudyn]\nconstraints = "index2"\nrestart_threshold = 0.0\nnewton_atol = 1e-3\n'
+            'why = "the ZOH study"\n')
     case = load_case(write(tmp_path, text, "good"))
-    assert case.exudyn == {"constraints": "index2", "restart_threshold": 0.0}
+    assert case.exudyn == {"constraints": "index2", "restart_threshold": 0.0, "newton_atol": 1e-3}
 
 
 def test_growth_metric_takes_a_window(tmp_path):
@@ -166,6 +167,9 @@ BAD = [
      "exudyn.constraints"),
     ("exudyn_restart_negative", lambda t: t + '[exudyn]\nrestart_threshold = -0.1\nwhy = "a study"\n',
      "exudyn.restart_threshold"),
+    ("exudyn_newton_atol_zero", lambda t: t + '[exudyn]\nnewton_atol = 0.0\nwhy = "a study"\n',
+     "exudyn.newton_atol"),
+    ("exudyn_newton_atol_without_why", lambda t: t + '[exudyn]\nnewton_atol = 1e-3\n', "exudyn.why"),
     ("exudyn_constraints_without_why", lambda t: t + '[exudyn]\nconstraints = "index2"\n', "exudyn.why"),
     ("growth_without_window", lambda t: t + GROWTH, "compare.motor_torques.window"),
     ("window_without_growth",

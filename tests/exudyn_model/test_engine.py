@@ -198,6 +198,11 @@ def test_case_exudyn_table_sets_the_step_and_options_override_it():
     assert ExudynEngine(case, rigid=True).substeps == 256
     assert ExudynEngine(case, rigid=True, substeps=4).substeps == 4
     assert ExudynEngine(load_case("free_drift"), rigid=True).substeps == 2  # no table: the default
+    # motor_step's stiffer links (EA = 1e6·EI) keep the other cases' 1e-3 N, not 1000·ε·EA = 1e-2 N
+    assert case.exudyn["newton_atol"] == 1e-3
+    assert ExudynEngine(case).newton_atol == 1e-3
+    assert ExudynEngine(case, newton_atol=5e-3).newton_atol == 5e-3
+    assert ExudynEngine(case, rigid=True).newton_atol == 1e-10  # rigid links: no axial round-off floor
 
 
 def test_stalled_newton_step_is_retried_with_a_looser_tolerance():
