@@ -134,14 +134,19 @@ def _modes_html() -> str:
 DATA_DIR = Path(__file__).resolve().parent.parent / "docs" / "data"
 
 
+def _stored(data_dir: Path, pattern: str):
+    """(path, document) of each readable JSON file matching `pattern`, sorted by name."""
+    for path in sorted(data_dir.glob(pattern)):
+        try:
+            yield path, json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+
+
 def _studies_html(data_dir: Path = DATA_DIR) -> str:
     """The stored engine studies (rsmcheck.studies → docs/data/*.json), if present."""
     parts = []
-    for path in sorted(data_dir.glob("rigid_steps_*.json")):
-        try:
-            doc = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError):
-            continue
+    for path, doc in _stored(data_dir, "rigid_steps_*.json"):
         opts = doc.get("exudyn_options", {})
         parts.append(f"<h3>Rigid equivalence vs step ({html.escape(path.name)}, Exudyn {html.escape(str(opts))}, "
                      f"reference rtol {doc.get('reference_rtol')})</h3><p class='small'>{html.escape(doc.get('metric', ''))}"
@@ -158,11 +163,7 @@ def _studies_html(data_dir: Path = DATA_DIR) -> str:
                              f"{errs.get('reaction_forces_I', float('nan')):.2e}"])
         parts.append(_table(["case", "substeps", "h [ms]", "wall [s]", "worst", "worst except reaction",
                              "reaction"], rows, left=1))
-    for path in sorted(data_dir.glob("convergence_*.json")):
-        try:
-            doc = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError):
-            continue
+    for _, doc in _stored(data_dir, "convergence_*.json"):
         modes, elements = doc.get("modes", []), doc.get("elements", [])
         for obs in ("link_deflection", "joint_angles", "ee2_pos_B", "energy"):
             rows = []
@@ -172,11 +173,7 @@ def _studies_html(data_dir: Path = DATA_DIR) -> str:
             parts.append(f"<h3>Flexible convergence, {html.escape(doc.get('case', ''))} ({doc.get('duration')} s, "
                          f"h = {doc.get('h', 0) * 1e3:.3g} ms): {obs}</h3>"
                          + _table(["reference modes ↓ / Exudyn elements →"] + [str(m) for m in elements], rows))
-    for path in sorted(data_dir.glob("refinement_*.json")):
-        try:
-            doc = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError):
-            continue
+    for _, doc in _stored(data_dir, "refinement_*.json"):
         tols = doc.get("tolerances", {})
         settings = [f"{e['substeps']},{e['axial_to_bending']:g}" for e in doc.get("exudyn", [])]
         rows = []
