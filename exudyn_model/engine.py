@@ -776,37 +776,36 @@ class ExudynEngine:
         mbs.SetObjectParameter(self.bistops[k], "activeConnector", False)
         self.grasp_on[k] = 0
         info = self._switch_basis(3 * k + 2, PF)
+        info["impact_loss_J"] = self._plastic_impact()
         self._restart()
         return info
 
     def _switch_basis(self, i: int, new: str) -> dict[str, float]:
         """Redefine the frame of terminal link i (docs/physics.md §4.4): the frame body turns
         by δ to the chord (PP) or to the mass-orthogonal axis (PF); the beam, the pins and
-        the rotor do not move, so θ_J3 jumps by δ and there is no projection residual."""
+        the rotor do not move, so θ_J3 jumps by δ and there is no projection residual.  The
+        frame body keeps its angular velocity: the caller's `_plastic_impact` brings it to
+        the new axis's rate, coupling J_extra to the system by internal impulses
+        (physics.md §2.3, momentum conserved)."""
         it = self.links[i]
         if it.rigid or it.basis == new:
             it.basis = new
             return {"delta_rad": 0.0, "residual_m": 0.0, "residual_mps": 0.0}
-        q, v = self._qv()
-        qi, vi = q[it.coords], v[it.coords]
-        R, Rd = qi[0:2], vi[0:2]
+        q, _ = self._qv()
+        qi = q[it.coords]
+        R = qi[0:2]
         if new == PP:
-            d, dd = qi[-4:-2] - R, vi[-4:-2] - Rd
+            d = qi[-4:-2] - R
         else:
-            m_half = 0.5 * self.params.link.mass * self.params.link.length
-            d, dd = self.moment @ qi - m_half * R, self.moment @ vi - m_half * Rd
+            d = self.moment @ qi - 0.5 * self.params.link.mass * self.params.link.length * R
         theta_new = math.atan2(d[1], d[0])
-        omega_new = _cross(d, dd) / float(d @ d)
         j = self.i_frame[i]
         th_old = q[j]
         delta = math.remainder(theta_new - th_old, 2 * math.pi)
         sd = self.mbs.systemData
         qc = np.asarray(sd.GetODE2Coordinates())
-        vc = np.asarray(sd.GetODE2Coordinates_t())
         qc[j] += delta
-        vc[j] = omega_new
         sd.SetODE2Coordinates(qc)
-        sd.SetODE2Coordinates_t(vc)
         self.mbs.SetObjectParameter(it.pp_joint, "activeConnector", new == PP)
         self.mbs.SetObjectParameter(it.pf_joint, "activeConnector", new == PF)
         it.basis = new
@@ -814,7 +813,8 @@ class ExudynEngine:
 
     def _plastic_impact(self) -> float:
         """Mass-weighted projection of the velocities on the active constraints
-        (docs/physics.md §4.2): [M Gᵀ; G 0][v⁺; μ] = [M v; 0].  Returns the energy lost."""
+        (docs/physics.md §4.2, and §2.3 at a basis switch): [M Gᵀ; G 0][v⁺; μ] = [M v; 0].
+        Returns the energy lost."""
         # M and the constraint Jacobian at the current state from Exudyn's own functions, by
         # the separate static solver object of exudyn_model.reactions (the integrator's own
         # matrices are factorised sparse and must not be disturbed; that helper also keeps
@@ -825,7 +825,7 @@ class ExudynEngine:
         J = cf.constraint_jacobian()
         n2 = cf.n2
         if not (np.all(np.isfinite(M)) and np.all(np.isfinite(J))):
-            raise SimulationDiverged(self.name, self.t, "?", "mass matrix / constraint Jacobian at capture", float("nan"))
+            raise SimulationDiverged(self.name, self.t, "?", "mass matrix / constraint Jacobian at a capture or release", float("nan"))
         G = J[n2:, :n2]  # AE rows (no ODE1 coordinates)
         G = G[np.any(G != 0.0, axis=1)]
         v = np.asarray(mbs.systemData.GetODE2Coordinates_t())

@@ -21,11 +21,13 @@ from reference_model.model import Configuration, ReferenceModel
 @dataclass(frozen=True)
 class SwitchReport:
     """What a basis switch did: frame rotation δ [rad], largest position and velocity
-    discontinuity of a material point over the link [m, m/s] (the projection residual)."""
+    discontinuity of a material point over the link [m, m/s] (the projection residual),
+    and the generalised momentum the new coordinates dropped (`dropped_momentum`, over Ẏ)."""
 
     delta_rad: float
     residual_m: float
     residual_mps: float
+    dropped_momentum: np.ndarray | None = None
 
 
 def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link: int, new: int) -> SwitchReport:
@@ -40,6 +42,12 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     keep the free tip w'(L), ẇ'(L): the distal pin stays continuous; for PP the chord frame
     already puts it at w'(L) = 0).  θ_J of the link takes
     δ (and θ̇' − θ̇); the rotor angle and the proximal pin do not move.
+
+    What the new rates do not carry is returned as a generalised momentum over Ẏ: the
+    velocity field's residual r(ξ) = ṙ_old(ξ) − ṙ_new(ξ) at each material point, and J_extra's
+    spin, which rides on the frame (physics.md §2.3) and still turns at the old rate θ̇:
+        p_i = ∫ρ r·∂ṙ_new/∂q̇_i dξ + ∂θ/∂q_i J_extra (θ̇ − θ̇').
+    `project_velocities` gives it back to the system.
     """
     lay = model.layout
     old = int(cfg.basis[link])
@@ -60,7 +68,8 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     wd_L = mode_shapes(old, n, L, np.array([L]))[0] @ qd[sl] if n else 0.0
     if old == PP:
         w_L = wd_L = 0.0  # sin(jπ) = 0
-    om = model.kinematics(q, qd, cfg)[1][link]
+    kin = model.kinematics(q, qd, cfg)
+    th_old, om = kin[0][link], kin[1][link]
 
     if new == PP:
         delta = math.atan2(w_L, L)
@@ -72,7 +81,7 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     w_new = -xi * math.sin(delta) + w * math.cos(delta)
     wd_new = math.sin(delta) * om * w + math.cos(delta) * (om * xi + wd) - om_new * xi
 
-    res_p = res_v = 0.0
+    rate_residual = wd_new
     if n:
         mass = rho * (phi_new.T * wq) @ phi_new
         b_p = rho * (phi_new.T * wq) @ w_new
@@ -94,25 +103,48 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
             a_new = np.linalg.solve(mass, b_p)
             ad_new = np.linalg.solve(mass, b_v)
         res_p = float(np.max(np.abs(w_new - phi_new @ a_new)))
-        res_v = float(np.max(np.abs(wd_new - phi_new @ ad_new)))
+        rate_residual = wd_new - phi_new @ ad_new
         x[lay.q][sl] = a_new
         x[lay.qd][sl] = ad_new
     else:
         res_p = float(np.max(np.abs(w_new)))
-        res_v = float(np.max(np.abs(wd_new)))
     joint = 3 + link
     x[joint] += delta
     x[lay.ns + joint] += om_new - om
     cfg.basis[link] = new
-    return SwitchReport(delta, res_p, res_v)
+
+    # the velocity field before and after, at the same material points ξ (inertial axes):
+    # ṙ(ξ) = Ṙ + A(θ)(−θ̇ w, θ̇ ξ + ẇ); the pin velocity Ṙ is the same in both
+    w_kept = phi_new @ x[lay.q][sl] if n else np.zeros_like(xi)
+    wd_kept = phi_new @ x[lay.qd][sl] if n else np.zeros_like(xi)
+    th_new = th_old + delta
+    r = (_rotate(th_old, -om * w, om * xi + wd)
+         - _rotate(th_new, -om_new * w_kept, om_new * xi + wd_kept))
+    _, _, _, _, JR, Jth, *_ = model.kinematics(x[lay.q], x[lay.qd], cfg)
+    # ∂ṙ/∂q̇_i = ∂R/∂q_i + ∂θ/∂q_i A(θ')(−w', ξ) + [i = a'_j] A(θ') e_y φ_j
+    turn = _rotate(th_new, -w_kept, xi)
+    n_new = np.array([-math.sin(th_new), math.cos(th_new)])
+    dropped = np.zeros(lay.ny)
+    dropped[:lay.nq] = (JR[link].T @ (rho * (r @ wq))
+                        + Jth[link] * (rho * np.sum(wq * np.sum(r * turn, axis=0))
+                                       + lk.inertia_extra * (om - om_new)))
+    if n:
+        dropped[sl] += rho * (phi_new.T * wq) @ (n_new @ r)
+    return SwitchReport(delta, res_p, float(np.max(np.abs(rate_residual))), dropped)
+
+
+def _rotate(theta: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A(θ)(a, b) for arrays a, b: shape (2, len(a))."""
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([c * a - s * b, s * a + c * b])
 
 
 def capture(model: ReferenceModel, x: np.ndarray, cfg: Configuration, arm: int) -> dict[str, float]:
     """Switch grasp `arm` on (docs/physics.md §4.2), in place.  Returns event figures."""
     lay = model.layout
     k = arm - 1
-    link = 3 * k + 2
-    report = switch_basis(model, x, cfg, link, PP)
+    e_before = kinetic_energy(model, x, cfg)
+    report = switch_basis(model, x, cfg, 3 * k + 2, PP)
     q, qd = x[lay.q], x[lay.qd]
     rE = model.kinematics(q, qd, cfg)[7][k]
     XT = x[lay.target]
@@ -120,24 +152,52 @@ def capture(model: ReferenceModel, x: np.ndarray, cfg: Configuration, arm: int) 
     d = rE - XT[0:2]
     cfg.rho_G[k] = [c * d[0] + s * d[1], -s * d[0] + c * d[1]]  # A(θ_T)ᵀ (r_EE − r_T)
     cfg.grasp_on[k] = 1
-    # plastic impact: Ẏ⁺ = Ẏ − M⁻¹Aᵀ(AM⁻¹Aᵀ)⁻¹AẎ
-    Mg, _, A, *_ = model.assemble(x, np.zeros(core.N_INPUTS), cfg)
-    Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
-    MinvAt = np.linalg.solve(Mg, A.T)
-    jump = -MinvAt @ np.linalg.solve(A @ MinvAt, A @ Yd)
-    e_before = 0.5 * Yd @ Mg @ Yd
-    Yd = Yd + jump
-    e_after = 0.5 * Yd @ Mg @ Yd
-    x[lay.qd] = Yd[:lay.nq]
-    x[lay.target_d] = Yd[lay.nq:]
+    project_velocities(model, x, cfg, report.dropped_momentum)
     return {"delta_rad": report.delta_rad, "residual_m": report.residual_m,
-            "residual_mps": report.residual_mps, "impact_loss_J": e_before - e_after}
+            "residual_mps": report.residual_mps, "impact_loss_J": e_before - kinetic_energy(model, x, cfg)}
 
 
 def release(model: ReferenceModel, x: np.ndarray, cfg: Configuration, arm: int) -> dict[str, float]:
     """Switch grasp `arm` off and its terminal link to the PF basis, in place."""
     k = arm - 1
+    e_before = kinetic_energy(model, x, cfg)
     cfg.grasp_on[k] = 0
     report = switch_basis(model, x, cfg, 3 * k + 2, PF)
+    project_velocities(model, x, cfg, report.dropped_momentum)
     return {"delta_rad": report.delta_rad, "residual_m": report.residual_m,
-            "residual_mps": report.residual_mps}
+            "residual_mps": report.residual_mps, "impact_loss_J": e_before - kinetic_energy(model, x, cfg)}
+
+
+def project_velocities(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
+                       dropped: np.ndarray | None) -> None:
+    """Velocities after a switch (docs/physics.md §4.2, §4.4), in place: the generalised
+    momentum the switch dropped is given back, then every active grasp is satisfied,
+
+        M Ẏ⁺ = M Ẏ + p_dropped + Aᵀλ,   A Ẏ⁺ = 0,
+        Ẏ⁺ = P (Ẏ + M⁻¹ p_dropped),   P = 1 − M⁻¹Aᵀ(AM⁻¹Aᵀ)⁻¹A,
+
+    i.e. the old velocity field projected on the new admissible velocities in the
+    kinetic-energy metric of the whole system.  All impulses are internal (the field's own,
+    J_extra's on its frame, the grasps' Aᵀλ): linear and angular momentum are conserved.
+    With nothing dropped and a grasp just added it is the plastic impact of §4.2.
+    """
+    lay = model.layout
+    Mg, _, A, *_ = model.assemble(x, np.zeros(core.N_INPUTS), cfg)
+    Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
+    if dropped is not None:
+        Yd = Yd + np.linalg.solve(Mg, dropped)
+    if A.shape[0]:
+        # Ẏ⁺ = Ẏ − M⁻¹Aᵀ(AM⁻¹Aᵀ)⁻¹AẎ
+        MinvAt = np.linalg.solve(Mg, A.T)
+        Yd = Yd - MinvAt @ np.linalg.solve(A @ MinvAt, A @ Yd)
+    x[lay.qd] = Yd[:lay.nq]
+    x[lay.target_d] = Yd[lay.nq:]
+
+
+def kinetic_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> float:
+    """½ Ẏᵀ M Ẏ [J]: base, links (J_extra included) and target; the rotors are not touched
+    by a switch."""
+    lay = model.layout
+    Mg = model.assemble(x, np.zeros(core.N_INPUTS), cfg)[0]
+    Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
+    return float(0.5 * Yd @ Mg @ Yd)

@@ -127,8 +127,11 @@ def test_release_opens_the_chain_without_a_jump():
     assert np.all(o["grasp_state"][after] == [1.0, 0.0])
     assert np.all(o["reaction_forces_I"][after][:, 2:] == 0.0)
     assert np.max(np.abs(o["reaction_forces_I"][~after][:, 2:])) > 1.0
+    # no external impulse: momentum is conserved across the basis switch too (J_extra and
+    # the rate residual go back through internal impulses, docs/physics.md §4.4; measured
+    # 4e-10 kg·m²/s, the position residual; it was 4.7e-5 before)
     p = o["momentum_I"]
-    assert np.max(np.abs(p - p[0])) < 1e-3
+    assert np.max(np.abs(p - p[0])) < 1e-8
     # arm 2, preloaded by the squeeze, springs away from grasp point 2
     assert np.linalg.norm(o["ee2_pos_B"][-1] - o["ee2_pos_B"][0]) > 0.01
 

@@ -270,8 +270,8 @@ def test_plastic_impact_conserves_momentum_and_dissipates(make_case):
 def test_capture_release_round_trip(make_case):
     """Capture then release of arm 2 with a deflected, vibrating terminal link: grasp and
     basis back to the open chain, pins continuous through both switches, the field back to
-    within the two reported residuals, momentum changed only by what the projections allow
-    (link mass × velocity residual), energy never created by the impact."""
+    within the two reported residuals, momentum conserved by both (the rates the new basis
+    cannot carry go back to the system as internal impulses), energy never created."""
     engine = open_chain_engine(make_case, 2, amp=1e-5, rate=1e-5, seed=9)
     model, x, cfg = engine.model, engine.x, engine.cfg
     m_link = model.params.link.mass
@@ -288,14 +288,21 @@ def test_capture_release_round_trip(make_case):
     for a, b in ((start, mid), (mid, end)):
         dr, dv = _jumps(a, b)
         assert dr[0] <= PIN_TOL and dr[-1] <= PIN_TOL
+    # at the release (no impact) the pins' velocities move only by the system's response to
+    # the dropped momentum, of the size of the rate residual (measured 0.15× and 1.02× of it)
+    assert max(dv[0], dv[-1]) <= 2.0 * info_r["residual_mps"]
     # positions: the impact moves nothing, so only the two projections act
     dr = np.linalg.norm(end[0] - start[0], axis=1)
     assert dr.max() <= 1.02 * (info_c["residual_m"] + info_r["residual_m"]) + 1e-10
-    # momentum: the impact conserves it; each projection changes it by at most
-    # ∫ρ|Δẇ| ≤ m_link × residual_mps
-    budget = m_link * (info_c["residual_mps"] + info_r["residual_mps"])
-    assert np.linalg.norm(p2[:2] - p0[:2]) <= budget + MOMENTUM_REL_TOL * np.linalg.norm(p0[:2])
-    assert np.linalg.norm(p1[:2] - p0[:2]) <= m_link * info_c["residual_mps"] + MOMENTUM_REL_TOL * np.linalg.norm(p0[:2])
+    # momentum: every velocity jump is an internal impulse (the field's dropped residual,
+    # J_extra's coupling to the new frame, the grasp), so linear and angular momentum are
+    # conserved through both switches (docs/physics.md §4.4)
+    for a, b in ((p0, p1), (p1, p2)):
+        assert np.linalg.norm(b[:2] - a[:2]) <= MOMENTUM_REL_TOL * np.linalg.norm(p0[:2])
+        assert abs(b[2] - a[2]) <= MOMENTUM_REL_TOL * abs(p0[2])
+    print(f"\nround trip: |Δp| = {np.linalg.norm(p1[:2] - p0[:2]):.1e}, {np.linalg.norm(p2[:2] - p1[:2]):.1e} "
+          f"of {np.linalg.norm(p0[:2]):.1e} kg·m/s; |ΔL| = {abs(p1[2] - p0[2]):.1e}, {abs(p2[2] - p1[2]):.1e} "
+          f"of {abs(p0[2]):.1e} kg·m²/s; residual_mps {info_c['residual_mps']:.1e}, {info_r['residual_mps']:.1e}")
     # the elastic energy after the round trip is that of the projected field: no more
     # than a residual's worth away from the start (½ k (A ± res)² − ½ k A²)
     assert e2[1] == pytest.approx(e0[1], rel=0.05)
