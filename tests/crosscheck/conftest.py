@@ -1,9 +1,10 @@
 """Shared engine runs for the crosscheck tests.
 
 Every (case, engine) run is done once per session, in a pool of two worker processes
-(the engines are independent: two cores halve the wall time).  The first test that needs
-a run submits every run the collected tests will need, in collection order, so the pool
-is never idle; each test then waits only for its own case.
+(the engines are independent: two cores halve the wall time).  As soon as collection is
+finished every run the collected tests will need is submitted, in collection order, so the
+runs proceed in the background while the tests collected before them (tests/cases, which
+need no pool) run in the main process; each test then waits only for its own case.
 """
 
 from __future__ import annotations
@@ -77,10 +78,26 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "engine_runs(*jobs): (case, engine, short, options) runs a test needs")
 
 
+POOL = pytest.StashKey[RunPool]()
+
+
+def pytest_collection_finish(session):
+    jobs = _wanted(session.items)
+    if jobs and not session.config.option.collectonly:
+        pool = session.config.stash[POOL] = RunPool()
+        for case, engine, short, options in jobs:
+            pool.submit(case, engine, short, **dict(options))
+
+
+def pytest_sessionfinish(session):
+    pool = session.config.stash.get(POOL, None)
+    if pool is not None:
+        pool.close()
+
+
 @pytest.fixture(scope="session")
 def run_pool(request) -> Callable[..., Any]:
-    pool = RunPool()
-    request.addfinalizer(pool.close)
-    for case, engine, short, options in _wanted(request.session.items):
-        pool.submit(case, engine, short, **dict(options))
-    return pool
+    stash = request.config.stash
+    if POOL not in stash:  # a test that declared no engine_runs: runs on demand
+        stash[POOL] = RunPool()
+    return stash[POOL]
