@@ -81,7 +81,6 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     w_new = -xi * math.sin(delta) + w * math.cos(delta)
     wd_new = math.sin(delta) * om * w + math.cos(delta) * (om * xi + wd) - om_new * xi
 
-    rate_residual = wd_new
     if n:
         mass = rho * (phi_new.T * wq) @ phi_new
         b_p = rho * (phi_new.T * wq) @ w_new
@@ -103,7 +102,6 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
             a_new = np.linalg.solve(mass, b_p)
             ad_new = np.linalg.solve(mass, b_v)
         res_p = float(np.max(np.abs(w_new - phi_new @ a_new)))
-        rate_residual = wd_new - phi_new @ ad_new
         x[lay.q][sl] = a_new
         x[lay.qd][sl] = ad_new
     else:
@@ -130,7 +128,8 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
                                        + lk.inertia_extra * (om - om_new)))
     if n:
         dropped[sl] += rho * (phi_new.T * wq) @ (n_new @ r)
-    return SwitchReport(delta, res_p, float(np.max(np.abs(rate_residual))), dropped)
+    # the transverse part n'·r is the rate residual ẇ' − Φ_new ȧ' of the least squares
+    return SwitchReport(delta, res_p, float(np.max(np.abs(n_new @ r))), dropped)
 
 
 def _rotate(theta: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
