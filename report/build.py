@@ -100,7 +100,9 @@ def _compare_html(case: Case, runs: dict[str, EngineRun], short: bool) -> str:
     for r in check_runs(variant, runs["reference"], runs["exudyn"]):
         rows.append([html.escape(r.observable), r.metric, f"{r.error:.3e}", f"{r.tolerance:.3e}", _fmt(r.margin),
                      "<span class='pass'>pass</span>" if r.passed else "<span class='fail'>FAIL</span>",
-                     f"{r.reference_range:.3e}", f"<span class='small'>{html.escape(r.why)}</span>"])
+                     f"{r.reference_range:.3e}",
+                     f"<span class='small'>{html.escape(r.why)}"
+                     + (f"<br><i>{html.escape(r.switch_note())}</i>" if r.at_switches else "") + "</span>"])
     return ("<p><b>Engine comparison</b> (reference vs Exudyn, the case's [compare] table; error in the "
             "observable's unit, margin = tolerance / error)</p>"
             + _table(["observable", "metric", "error", "tolerance", "margin", "result", "reference range", "why"],

@@ -144,6 +144,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
         for r in res.rows:
             print(f"  {r.observable:20s} {r.metric:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
                   + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
+            if r.switch_note():
+                print(f"  {'':20s} {r.switch_note()}")
     rows = [r for res in results for r in res.rows]
     skipped = [{"case": res.case, "reason": res.skipped} for res in results if res.skipped]
     failed = [r for r in rows if not r.passed]

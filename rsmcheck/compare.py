@@ -18,6 +18,14 @@ tolerance *in the observable's unit* (SI, radians), a `why` sentence and a metri
 (a: the other engine, b: the reference; c runs over the components of the observable).
 The margin is tolerance / error: > 1 passes, and says how much room is left.
 
+*The sample at a constraint switch.*  A grasp's reaction force is a Lagrange multiplier:
+at a capture or release the reference's (axially rigid links) jumps to the new constraint
+set's value at once, Exudyn's (finite EA) is continuous and reaches it within the axial
+wave's transit — the two engines show the two one-sided limits of one quantity there
+(docs/physics.md §4.2, item 4).  `max_abs` and `rms` of the observables in `MULTIPLIERS`
+therefore leave out the samples at a switch, every other sample (the next one included)
+is compared, and the difference at the switch is reported on its own (`Check.at_switches`).
+
 **Relative differences** (`compare_runs`: rigid equivalence, convergence studies): the
 difference in units of the observable's size in the reference run,
 
@@ -42,6 +50,12 @@ from rsmcheck.store import EngineRun
 
 #: metrics a [compare] entry may ask for (cases.loader.METRICS names the same ones)
 METRICS = ("max_abs", "rms", "final", "growth")
+
+#: observables that are Lagrange multipliers of the grasp constraints, and the events that
+#: switch those constraints: at a switch sample they are one-sided limits that depend on
+#: the model class (module docstring), so that sample is reported and not compared
+MULTIPLIERS = ("reaction_forces_I",)
+CONSTRAINT_SWITCHES = ("capture", "release")
 
 #: number of equal blocks of the window whose maxima `growth_rate` fits
 GROWTH_BLOCKS = 10
@@ -112,13 +126,26 @@ def growth_rate(t: np.ndarray, x: np.ndarray, window: tuple[float, float]) -> fl
     return float(np.polyfit(centres, logs, 1)[0])
 
 
+def switch_samples(t: np.ndarray, *runs: EngineRun) -> np.ndarray:
+    """Indices of the samples `t` that fall on a constraint switch (capture or release) of
+    any of `runs` (each engine detects its own captures)."""
+    times = sorted({e.time for r in runs for e in r.events if e.kind in CONSTRAINT_SWITCHES})
+    hits = [np.flatnonzero(np.abs(t - te) <= 1e-9 * max(1.0, abs(te))) for te in times]
+    return np.unique(np.concatenate(hits)) if hits else np.zeros(0, int)
+
+
 def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = "max_abs",
-               case: str = "", window: tuple[float, float] | None = None) -> tuple[float, float, int]:
+               case: str = "", window: tuple[float, float] | None = None,
+               skip: np.ndarray | None = None) -> tuple[float, float, int]:
     """(error, time of the worst sample, worst component) of observable `name` by `metric`,
     in the observable's unit (1/s for `growth`, which needs `window`).  `worst_time` is NaN
-    for `rms` and `growth`."""
+    for `rms` and `growth`.  `skip`: indices of samples that `max_abs` and `rms` leave out."""
     t = _same_times(case, reference, other)
     a, b = _pair(reference, other, name, t.size)
+    if skip is not None and len(skip) and metric in ("max_abs", "rms"):
+        keep = np.ones(t.size, bool)
+        keep[np.asarray(skip, int)] = False
+        t, a, b = t[keep], a[keep], b[keep]
     if metric == "growth":
         if window is None:
             raise ValueError("metric 'growth' needs a window [t0, t1]")
@@ -177,6 +204,8 @@ class Check(_Verdict):
     reference_range: float = 0.0  # max_t ‖b(t)‖_∞: the size of the observable in the reference
     #: metric `growth`: σ [1/s] of each run ("reference", "other")
     growth_rates: Mapping[str, float] = field(default_factory=dict)
+    #: (time, error) of the samples at a constraint switch, left out of the error (MULTIPLIERS)
+    at_switches: tuple[tuple[float, float], ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         out = {"case": self.case, "observable": self.observable, "error": _finite(self.error),
@@ -185,7 +214,16 @@ class Check(_Verdict):
                "worst_component": self.worst_component, "reference_range": _finite(self.reference_range)}
         if self.growth_rates:
             out["growth_rates"] = {k: _finite(v) for k, v in self.growth_rates.items()}
+        if self.at_switches:
+            out["at_switches"] = [{"time": ts, "error": _finite(e)} for ts, e in self.at_switches]
         return out
+
+    def switch_note(self) -> str:
+        """One line on the switch samples left out, or ''."""
+        if not self.at_switches:
+            return ""
+        at = ", ".join(f"t = {ts:.6g} s: {e:.3g}" for ts, e in self.at_switches)
+        return f"not compared at the constraint switch ({at}): one-sided limits, docs/physics.md §4.2"
 
 
 def _finite(x: float) -> float | str | None:
@@ -201,13 +239,18 @@ def check_runs(case, reference: EngineRun, other: EngineRun) -> list[Check]:
     """Every entry of `case.compare` (a `cases.loader.Case`, the variant that was run)."""
     rows = []
     t = _same_times(case.name, reference, other)
+    switches = switch_samples(t, reference, other)
     for spec in case.compare:
-        err, tw, c = difference(reference, other, spec.observable, spec.metric, case.name, spec.window)
         a, b = _pair(reference, other, spec.observable, t.size)
+        skip = switches if spec.observable in MULTIPLIERS and spec.metric in ("max_abs", "rms") else None
+        if skip is not None and not np.all(np.isfinite(a[skip] - b[skip])):
+            skip = None  # a blow-up at the switch is a failure, not a one-sided limit
+        err, tw, c = difference(reference, other, spec.observable, spec.metric, case.name, spec.window, skip)
         rates = ({"reference": growth_rate(t, b, spec.window), "other": growth_rate(t, a, spec.window)}
                  if spec.metric == "growth" else {})
+        at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in skip) if skip is not None else ()
         rows.append(Check(case.name, spec.observable, err, float(spec.tolerance), spec.metric, spec.why,
-                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates))
+                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at))
     return rows
 
 

@@ -31,3 +31,25 @@ def test_a_missing_pair_is_shown_as_missing_and_red(tmp_path):
 def test_the_stored_studies_render():
     page = _studies_html()
     assert "Refinement, motor_step" in page and "Refinement, release" in page
+
+
+def test_engine_comparison_shows_the_switch_sample_left_out():
+    """docs/physics.md §4.2 item 4: the reaction force at a release is reported, not compared."""
+    import numpy as np
+
+    from cases.loader import load_case
+    from report.build import _compare_html
+    from rsmcheck.observables import allocate
+    from rsmcheck.store import EngineRun, Event
+
+    case = load_case("release")
+    t = np.arange(401) * 5e-3
+    runs = {}
+    for engine, jump in (("reference", 0.9), ("exudyn", 0.0)):
+        obs = allocate(t.size)
+        obs["time"] = t
+        obs["reaction_forces_I"][:, 0] = np.where(t >= 1.0, -10.0 - 0.9, -10.0)
+        obs["reaction_forces_I"][200, 0] = -10.0 - jump  # the left limit in one engine
+        runs[engine] = EngineRun(engine, obs, events=[Event(1.0, "release", "arm=2")])
+    page = _compare_html(case, runs, short=True)
+    assert "not compared at the constraint switch (t = 1 s: 0.9)" in page

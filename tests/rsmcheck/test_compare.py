@@ -15,7 +15,7 @@ from rsmcheck.cli import main
 from rsmcheck.compare import (METRICS, SCALE_FLOORS, Check, check_runs, compare_runs, difference,
                               growth_rate, relative_errors)
 from rsmcheck.observables import NAMES, allocate
-from rsmcheck.store import EngineRun
+from rsmcheck.store import EngineRun, Event
 
 
 def make_run(engine: str, n: int = 5, **values) -> EngineRun:
@@ -127,6 +127,54 @@ def test_check_runs_uses_the_case_table():
     assert not rows["momentum_I"].passed and rows["momentum_I"].error == pytest.approx(2e-6)
     assert rows["momentum_I"].reference_range == pytest.approx(2.0)
     assert rows["momentum_I"].why == "conserved"
+
+
+def _released_at_sample_2(jump: float, later: float = 0.0):
+    """Reaction forces of two runs whose grasp 2 lets go at sample 2 (t = 0.02 s): the
+    reference's remaining grasp-1 force jumps there by `jump`, the other's only a sample
+    later, where they differ by `later`."""
+    f_ref = np.tile([-10.0, 3.0, 10.0, -3.0], (5, 1))
+    f_ref[2:, 0] -= jump
+    f_ref[2:, 2:] = 0.0
+    f_exu = f_ref.copy()
+    f_exu[2, 0] += jump  # the left limit at the switch sample
+    f_exu[3, 0] += later
+    case = dataclasses.replace(load_case("release"), compare=(
+        CompareSpec("reaction_forces_I", 0.05, "squeeze"), CompareSpec("joint_angles", 1e-6, "angles")))
+    angles = np.zeros((5, 6))
+    ref = make_run("reference", reaction_forces_I=f_ref, joint_angles=angles)
+    exu = make_run("exudyn", reaction_forces_I=f_exu, joint_angles=angles + np.where(np.arange(5) == 2, 1e-5, 0)[:, None])
+    for r in (ref, exu):
+        r.events.append(Event(0.02, "release", "arm=2"))
+    return case, ref, exu
+
+
+def test_multiplier_at_a_constraint_switch_is_reported_not_compared():
+    """docs/physics.md §4.2 item 4: at a release the rigid-link reference's multiplier jumps,
+    the penalty-EA one reaches the same value a sample later."""
+    case, ref, exu = _released_at_sample_2(jump=0.9)
+    rows = {r.observable: r for r in check_runs(case, ref, exu)}
+    forces = rows["reaction_forces_I"]
+    assert forces.passed and forces.error == 0.0
+    assert forces.at_switches == ((pytest.approx(0.02), pytest.approx(0.9)),)
+    assert "t = 0.02 s: 0.9" in forces.switch_note()
+    assert json.loads(json.dumps(forces.as_dict()))["at_switches"] == [{"time": 0.02, "error": pytest.approx(0.9)}]
+    # only multipliers: a joint angle off at the switch sample is a failure
+    assert not rows["joint_angles"].passed and rows["joint_angles"].worst_time == pytest.approx(0.02)
+    assert rows["joint_angles"].at_switches == ()
+
+
+def test_multiplier_after_a_constraint_switch_is_compared():
+    case, ref, exu = _released_at_sample_2(jump=0.9, later=0.2)
+    forces = next(r for r in check_runs(case, ref, exu) if r.observable == "reaction_forces_I")
+    assert not forces.passed and forces.error == pytest.approx(0.2) and forces.worst_time == pytest.approx(0.03)
+
+
+def test_multiplier_blowing_up_at_a_switch_is_not_left_out():
+    case, ref, exu = _released_at_sample_2(jump=0.9)
+    exu.observables["reaction_forces_I"][2, 1] = np.nan
+    forces = next(r for r in check_runs(case, ref, exu) if r.observable == "reaction_forces_I")
+    assert forces.error == math.inf and not forces.passed and forces.at_switches == ()
 
 
 def test_relative_differences_use_the_floors():
