@@ -41,6 +41,7 @@ Format (every key optional unless marked):
     kind = "none" | "constant" | "programme"
     motor_torques = [6 values]       # "constant": held τ_m [N·m]
     base_torque = 0.0
+    ramp_time = 0.0                  # "constant": brought in as (1 − cos(πt/T))/2 over T [s]; 0 = a step
     feedback = "measured" | "kinematic"   # "programme": end-effector position in e_EE
     rate_filter_hz = 0.0             # first-order low-pass on θ̇_J in eq. (14); 0 = none
     gains = "..."                    # one sentence: how the gains were chosen
@@ -179,6 +180,7 @@ class ControllerSpec:
     kind: str = "none"
     motor_torques: tuple[float, ...] = (0.0,) * 6
     base_torque: float = 0.0
+    ramp_time: float = 0.0  # "constant": smooth ramp-in time [s]; 0 = a step at t = 0
     feedback: str = "measured"
     rate_filter_hz: float = 0.0  # first-order low-pass on θ̇_J of eq. (14); 0 = none
     gains: str = ""
@@ -676,6 +678,7 @@ def _controller(w: str, key: str, v: Any) -> ControllerSpec:
         "kind": lambda k, x: _choice(w, k, x, ("none", "constant", "programme")),
         "motor_torques": lambda k, x: _vector(w, k, x, 6),
         "base_torque": lambda k, x: _number(w, k, x),
+        "ramp_time": lambda k, x: _number(w, k, x, 0.0),
         "feedback": lambda k, x: _choice(w, k, x, ("measured", "kinematic")),
         "rate_filter_hz": lambda k, x: _number(w, k, x, 0.0),
         "gains": lambda k, x: _text(w, k, x),
@@ -688,7 +691,7 @@ def _controller(w: str, key: str, v: Any) -> ControllerSpec:
     spec = ControllerSpec(**ctrl)
     kind = spec.kind
     if kind != "constant":
-        for k in ("motor_torques", "base_torque"):
+        for k in ("motor_torques", "base_torque", "ramp_time"):
             if k in ctrl:
                 raise InputError(w, f"{key}.{k}", f"only for kind = \"constant\" (kind is {kind!r})")
     if kind != "programme":

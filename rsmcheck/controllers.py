@@ -443,13 +443,34 @@ class ComAlignment:
         return self.pose + np.array([0.0, self.offset, 0.0])
 
 
+@dataclass(frozen=True)
+class HeldTorques:
+    """Open-loop torques held from t = 0 (controller kind "constant"), brought in over
+    `ramp_time` T [s] by the smooth step f(t) = (1 − cos(πt/T))/2 (zero rate at both ends).
+
+    Why a ramp: the joints are all but undamped (Table 4: C_m = 0.002 N·m·s/rad on
+    K_m = 4e4 N·m/rad, B_m = 0.12 kg·m², ζ = 1.4e-5 at 92 Hz), so a step rings the rotor
+    mode at the full static load for the whole run; the ramp leaves a ringing of order
+    (π/ωT)² of it (1.2e-4 at T = 0.5 s, ω = 578 rad/s).
+    """
+
+    held: Inputs
+    ramp_time: float = 0.0
+
+    def __call__(self, s: Sensors) -> Inputs:
+        f = 1.0
+        if s.time < self.ramp_time:
+            f = 0.5 * (1.0 - math.cos(math.pi * s.time / self.ramp_time))
+        return Inputs(tau_m=f * self.held.tau_m, tau_B=f * self.held.tau_B, thrust=0.0)
+
+
 def make_controller(spec: ControllerSpec, params: Params, period: float = 1e-3):
     """The controller a case names; `period` is the control period (the rate filter's)."""
     if spec.kind == "none":
         return lambda s: Inputs()
     if spec.kind == "constant":
         held = saturate(Inputs(tau_m=np.array(spec.motor_torques, float), tau_B=spec.base_torque), params)
-        return lambda s: Inputs(tau_m=held.tau_m.copy(), tau_B=held.tau_B, thrust=0.0)
+        return HeldTorques(held, spec.ramp_time)
     if spec.kind == "programme":
         return ProgrammeController(spec, params, period)
     raise ValueError(f"unknown controller kind {spec.kind!r}")

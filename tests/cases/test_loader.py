@@ -179,6 +179,11 @@ BAD = [
     ("window_not_a_pair", lambda t: t + GROWTH + "window = [0.5]\n", "compare.motor_torques.window"),
     ("window_text", lambda t: t + GROWTH + 'window = [0.5, "end"]\n', "compare.motor_torques.window"),
     ("window_after_the_run", lambda t: t + GROWTH + "window = [0.5, 3.0]\n", "compare.motor_torques.window"),
+    ("ramp_time_without_torques",
+     lambda t: edit(t, 'kind = "constant"\nmotor_torques = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]\nbase_torque = 0.0',
+                    'kind = "none"\nramp_time = 0.5'), "controller.ramp_time"),
+    *((f"ramp_time_{name}", lambda t, v=value: edit(t, "base_torque = 0.0", f"base_torque = 0.0\nramp_time = {v}"),
+       "controller.ramp_time") for name, value in (("negative", "-0.5"), ("text", '"slow"'), ("not_finite", "inf"))),
     ("toml_syntax", lambda t: t + "this is not toml\n", "toml"),
 ]
 

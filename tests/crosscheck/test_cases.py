@@ -17,17 +17,7 @@ from rsmcheck.compare import check_runs
 
 #: (case, observable) -> why it cannot pass at the case's tolerance, with the measured size
 #: (Exudyn at the case's [exudyn] step, EA = 1e5·EI; docs/exudyn.md §5, §8)
-KNOWN: dict[tuple[str, str], str] = {
-    ("release", "reaction_forces_I"):
-        "at the release sample (t = 1 s) the reference's grasp-1 reaction jumps by −0.21 N (−0.27, −0.22, −0.21, "
-        "−0.207 N with 1, 2, 4, 6 modes) and Exudyn's does not (−8e-3, −4e-3, −2e-3, −1e-3 N with 2, 4, 8, 16 "
-        "elements): axially rigid links give the remaining grasp a finite instantaneous tip mass, the penalty EA of "
-        "the ANCF links none, so its multiplier rises over the axial boundary layer (< 5 ms, the next sample agrees "
-        "to 0.02 N) instead of jumping: a difference of model class that refinement does not remove; off that "
-        "sample the phase of the squeeze's ringing grows to 0.32 N by t = 2 s at the case's h = 31 µs (0.083 N "
-        "before and 0.096 N after the release at 7.8 µs; 0.028 N at 7.8 µs with EA = 1e6·EI, where Newton cannot "
-        "reach the 1e-4 N the momentum comparison needs); tolerance 0.05 N",
-}
+KNOWN: dict[tuple[str, str], str] = {}
 
 
 def _pairs() -> list:

@@ -33,7 +33,7 @@ def _continued(case_name: str, duration: float, edit=None):
 
 
 def test_import_continues_the_deformed_state():
-    first, second = _continued("release", 0.05)  # squeezed closed chain: twisted rotors, bent links
+    first, second = _continued("closed_squeeze", 0.05)  # squeezed closed chain: twisted rotors, bent links
     a, b = first.observe(Inputs()), second.observe(Inputs())
     assert second.solver_settings()["start"] == "exact end state"
     assert np.max(np.abs(a["link_deflection"])) > 1e-7  # there is a deformation to carry over
@@ -47,7 +47,7 @@ def test_rigid_start_takes_motor_angles_and_propellant():
         state["exact"] = None
         state["rigid"]["m_used"] = 2.5
 
-    first, second = _continued("release", 0.05, drop_exact)
+    first, second = _continued("closed_squeeze", 0.05, drop_exact)
     s1, s2 = first.sensors(), second.sensors()
     assert second.solver_settings()["start"] == "rigid end state"
     assert np.allclose(s2.motor_angles, s1.motor_angles, atol=1e-14)

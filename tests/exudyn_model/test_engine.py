@@ -18,6 +18,7 @@ differences with a margin, each explained in docs/exudyn.md:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -161,10 +162,11 @@ def test_release_basis_switch_matches_reference():
     assert len(ev_r) == len(ev_e) == 1 and ev_r[0].time == ev_e[0].time
     d_r = float(ev_r[0].detail.split("delta_rad=")[1].split()[0])
     d_e = float(ev_e[0].detail.split("delta_rad=")[1].split()[0])
-    # δ is the mass-weighted tilt of the deflection at that instant, δ ≈ ∫ρξw/I_0; the link
-    # vibration (driven by the 92 Hz rotor ripple, see above) agrees to ~20 % at t = 1 s.
-    # In torque: K_m |δ_e − δ_r| < 0.01 N·m.
-    assert abs(d_e - d_r) < 0.3 * abs(d_r), (d_r, d_e)
+    print(f"\nrelease: δ = {d_r:.4e} rad (reference), {d_e:.4e} rad (Exudyn)")
+    # δ is the mass-weighted tilt of the deflection at that instant, δ ≈ ∫ρξw/I_0: with the
+    # squeeze ramped in, the static bend of the squeeze (measured −6.512e-7 vs −6.520e-7 rad,
+    # 1.2e-3 apart).  In torque: K_m |δ_e − δ_r| < 0.01 N·m.
+    assert abs(d_e - d_r) < 1e-2 * abs(d_r), (d_r, d_e)
     assert case.params.motor.stiffness * abs(d_e - d_r) < 1e-2
     rows = {r.observable: r for r in compare_runs(case.name, ref, exu, {n: 1.0 for n in ALL})}
     for name in ("base_pose_I", "ee1_pos_B", "ee2_pos_B", "joint_angles", "target_pose_B", "com_pos_B"):
@@ -174,8 +176,10 @@ def test_release_basis_switch_matches_reference():
 def test_release_conserves_momentum():
     """At the release the frame of arm 2's terminal link is redefined (PP → PF) and its rate
     changes; J_extra on that frame is coupled to the system by the plastic projection
-    (docs/physics.md §2.3, §4.4), so linear and angular momentum do not jump."""
+    (docs/physics.md §2.3, §4.4), so linear and angular momentum do not jump.  The squeeze
+    as a step (no ramp) rings the links, so that the frame's rate does jump."""
     case = load_case("release")
+    case = dataclasses.replace(case, controller=dataclasses.replace(case.controller, ramp_time=0.0))
 
     class Probe(ExudynEngine):
         def release(self, arm):

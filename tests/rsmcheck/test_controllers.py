@@ -97,6 +97,22 @@ def test_saturation_of_tables_3_and_4():
     assert u.tau_B == -12.0 and u.thrust == 180.0
 
 
+def test_held_torques_step_and_ramp():
+    step = make_controller(ControllerSpec(kind="constant", motor_torques=(100.0, 0, 0, 0, 0, -5.0), base_torque=3.0), P)
+    u = step(sensors(t=0.0))
+    assert u.tau_m.tolist() == [80.0, 0, 0, 0, 0, -5.0] and u.tau_B == 3.0 and u.thrust == 0.0  # saturated
+    ramp = make_controller(ControllerSpec(kind="constant", motor_torques=(10.0, 0, 0, 0, 0, -5.0), base_torque=3.0,
+                                          ramp_time=0.5), P)
+    assert ramp(sensors(t=0.0)).tau_m.tolist() == [0.0] * 6 and ramp(sensors(t=0.0)).tau_B == 0.0
+    half = ramp(sensors(t=0.25))
+    assert half.tau_m[0] == pytest.approx(5.0) and half.tau_m[5] == pytest.approx(-2.5) and half.tau_B == pytest.approx(1.5)
+    assert ramp(sensors(t=0.5)).tau_m[0] == 10.0 and ramp(sensors(t=7.0)).tau_m[0] == 10.0
+    # smooth: zero slope at both ends (finite differences over 1 ms)
+    assert ramp(sensors(t=1e-3)).tau_m[0] < 1e-3 and 10.0 - ramp(sensors(t=0.499)).tau_m[0] < 1e-3
+    ramp(sensors(t=0.1)).tau_m[0] = 99.0  # the held torques are not shared with a caller
+    assert ramp(sensors(t=0.6)).tau_m[0] == 10.0
+
+
 def test_quintic_is_rest_to_rest():
     assert quintic(0.0, 0.0, 10.0) == (0.0, 0.0, 0.0)
     assert quintic(10.0, 0.0, 10.0) == (1.0, 0.0, 0.0)
