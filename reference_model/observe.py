@@ -14,7 +14,8 @@ from reference_model import core
 from reference_model.model import Configuration, ReferenceModel
 
 
-def _rot(a: float) -> np.ndarray:
+def rotation(a: float) -> np.ndarray:
+    """A(a): the 2×2 rotation by a [rad]."""
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, -s], [s, c]])
 
@@ -53,7 +54,7 @@ def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) 
         n = lay.n_modes[i]
         b = cfg.basis[i]
         a, ad = q[lay.modes(i)], qd[lay.modes(i)]
-        A = _rot(th[i])
+        A = rotation(th[i])
         s1 = link_s1(model, cfg, q, i)
         As1 = A @ s1
         ey = A[:, 1]
@@ -111,7 +112,7 @@ def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> fl
         n = lay.n_modes[i]
         a = q[lay.modes(i)]
         basis = bas[int(cfg.basis[i])]
-        A = _rot(th[i])
+        A = rotation(th[i])
         for xg, wg, ph in zip(basis.x_gauss, basis.w_gauss, basis.phi_gauss):
             rel = R[i] + A @ np.array([xg, ph[:n] @ a])
             e += prm.link.rho_a * wg * core._tidal_potential(rO, rel)
@@ -128,7 +129,7 @@ def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tupl
     s = mB * q[0:2] + prm.target.mass * x[lay.target][0:2]
     m = mB + prm.target.mass
     for i in range(core.N_LINKS):
-        s = s + prm.link.mass * R[i] + _rot(th[i]) @ link_s1(model, cfg, q, i)
+        s = s + prm.link.mass * R[i] + rotation(th[i]) @ link_s1(model, cfg, q, i)
         m += prm.link.mass
     return s / m, m
 
@@ -147,7 +148,7 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
     _, Rc = core.solve_constrained(Mg, f, A, Bs)
     th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = model.kinematics(q, qd, cfg)
-    AB_T = _rot(q[2]).T
+    AB_T = rotation(q[2]).T
     rB = q[0:2]
     com, msys = system_com(model, x, cfg)
     reaction = np.zeros(4)
@@ -158,7 +159,7 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
             reaction[2 * k:2 * k + 2] = Rc[row:row + 2]
             residual[2 * k:2 * k + 2] = phi[row:row + 2]
             row += 2
-    cap = XT[0:2] + _rot(XT[2]) @ capture_point_T
+    cap = XT[0:2] + rotation(XT[2]) @ capture_point_T
     deflection = np.zeros(6)
     phi_mid = np.stack([model.bases[0].phi_mid, model.bases[1].phi_mid])
     for i in range(core.N_LINKS):

@@ -16,6 +16,7 @@ import numpy as np
 from reference_model import core
 from reference_model.beam_modes import PF, PP, mode_shapes, quadrature
 from reference_model.model import Configuration, ReferenceModel
+from reference_model.observe import rotation
 
 
 @dataclass(frozen=True)
@@ -116,11 +117,11 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     w_kept = phi_new @ x[lay.q][sl] if n else np.zeros_like(xi)
     wd_kept = phi_new @ x[lay.qd][sl] if n else np.zeros_like(xi)
     th_new = th_old + delta
-    r = (_rotate(th_old, -om * w, om * xi + wd)
-         - _rotate(th_new, -om_new * w_kept, om_new * xi + wd_kept))
+    r = (rotation(th_old) @ np.array([-om * w, om * xi + wd])
+         - rotation(th_new) @ np.array([-om_new * w_kept, om_new * xi + wd_kept]))
     _, _, _, _, JR, Jth, *_ = model.kinematics(x[lay.q], x[lay.qd], cfg)
     # ∂ṙ/∂q̇_i = ∂R/∂q_i + ∂θ/∂q_i A(θ')(−w', ξ) + [i = a'_j] A(θ') e_y φ_j
-    turn = _rotate(th_new, -w_kept, xi)
+    turn = rotation(th_new) @ np.array([-w_kept, xi])
     n_new = np.array([-math.sin(th_new), math.cos(th_new)])
     dropped = np.zeros(lay.ny)
     dropped[:lay.nq] = (JR[link].T @ (rho * (r @ wq))
@@ -130,12 +131,6 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
         dropped[sl] += rho * (phi_new.T * wq) @ (n_new @ r)
     # the transverse part n'·r is the rate residual ẇ' − Φ_new ȧ' of the least squares
     return SwitchReport(delta, res_p, float(np.max(np.abs(n_new @ r))), dropped)
-
-
-def _rotate(theta: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """A(θ)(a, b) for arrays a, b: shape (2, len(a))."""
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([c * a - s * b, s * a + c * b])
 
 
 def capture(model: ReferenceModel, x: np.ndarray, cfg: Configuration, arm: int) -> dict[str, float]:
