@@ -83,7 +83,8 @@ Format (every key optional unless marked):
     integrator = "dopri5"            # the reference's: dopri5 | trbdf2 (stiff, quiet phases)
 
     [reference]
-    n_modes = 2                      # modes per link (0 = rigid), int or 6 ints
+    n_modes = 2                      # eigenmodes per link (0 = rigid), int or 6 ints
+    static_modes = true              # add the two end-couple correction shapes per link
     h_max = 2e-4                     # [s] largest step (default 0.05 DP5, 1.0 TR-BDF2); needs why
     why = "..."                      # required with h_max: the study behind it
 
@@ -128,7 +129,8 @@ CASES_DIR = Path(__file__).resolve().parent
 #: observables a [compare] table may name (SPEC §4), without importing numpy-heavy modules
 OBSERVABLE_NAMES = (
     "time", "base_pose_I", "target_pose_B", "ee1_pos_B", "ee2_pos_B", "ee2_speed",
-    "capture_gap_B", "com_pos_B", "joint_angles", "motor_angles", "motor_torques",
+    "capture_gap_B", "com_pos_B", "joint_angles", "joint_frame_angles", "wrist_angles",
+    "motor_angles", "motor_torques",
     "base_torque", "link_deflection", "target_attitude", "reaction_forces_I",
     "constraint_residual", "grasp_state", "energy", "momentum_I", "altitude",
     "target_rel_lvlh", "system_mass",
@@ -926,6 +928,7 @@ def _reference(w: str, key: str, v: Any) -> dict[str, Any]:
     """[reference]: modes per link, and the largest DP5 step with the reason (a study)."""
     return _engine_settings(w, key, v, {
         "n_modes": lambda k, x: _modes(w, k, x),
+        "static_modes": lambda k, x: _flag(w, k, x),
         "h_max": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
     }, needs_why=("h_max",))
 

@@ -6,23 +6,29 @@ Model (docs/exudyn.md has the reasons and the numbers):
   reference point O (docs/physics.md §5);
 * links: `ObjectANCFCable2D` chains (`exudyn_model.links`), or with `rigid=True`
   `ObjectRigidBody2D` (COM at mid-length, J_z about the COM);
-* link frames (docs/physics.md §2.1, §3.3): a massless rigid *frame body* per flexible link
-  carrying J_extra, pinned at the proximal pin (`ObjectJointRevolute2D`) and aligned by an
-  `ObjectJointPrismatic2D` (no rotation constraint) so that its x-axis passes through
+* end sections (docs/physics.md §3.3): a massless *hub* (`NodeRigidBody2D` with an
+  `ObjectRigidBody2D` of zero mass and inertia) at each end node of each beam, clamped to
+  it by `ObjectJointGeneric(constrainedAxes=[1,1,0,0,0,1])` on `MarkerNodeRigid`s: its
+  rotation is the rotation of the beam's end section (the ANCF slope direction);
+* joints: `ObjectJointRevolute2D` between beam-end nodes (a hinge: no moment of its own);
+  every torque the joint transmits acts on the two hubs;
+* rotors (eq. 2): one linear `ObjectGenericODE2` per joint over [parent distal hub (the base
+  for the first joint), child proximal hub, rotor θ_m (`NodeGenericODE2`)], mass B_m on θ_m,
+  stiffness K_m v vᵀ, damping C_m v vᵀ, v = (+1, −1, +1): the spring acts on θ_m − ψ_J, ψ_J
+  between the end sections; τ_m by `LoadCoordinate` on θ_m;
+* link frames (docs/physics.md §2.1, §2.3): a massless rigid *frame body* per flexible link
+  carrying J_extra (and nothing else), pinned at the proximal pin (`ObjectJointRevolute2D`)
+  and aligned by an `ObjectJointPrismatic2D` (no rotation constraint) so that its x-axis
+  passes through
     PP: the distal pin (chord frame), or
     PF: the point P = R + (L/I_0) ∫ρ ξ (r − R) dξ, a massless node tied to the beam
         coordinates by a linear `ObjectConnectorCoordinateVector`; its x-axis is then the
         mass-orthogonal frame, θ = atan2(∫ρ ξ (r − R) dξ), exactly;
-  a couple on a frame body is thereby transmitted to the beam as exactly the generalised
-  force τ ∂θ/∂q of physics.md §3.3 (the distributed load τρξ/I_0 for PF);
-* joints: `ObjectJointRevolute2D` between beam-end nodes (pinned ends: no moment);
-* rotors (eq. 2): one linear `ObjectGenericODE2` per joint over [parent frame θ, child frame
-  θ, rotor θ_m (`NodeGenericODE2`)], mass B_m on θ_m, stiffness K_m v vᵀ, damping C_m v vᵀ,
-  v = (+1, −1, +1): the spring acts on θ_m − θ_J with θ_J between link frames; τ_m by
-  `LoadCoordinate` on θ_m;
+  its inertial couple J_extra θ̈ reaches the beam as the generalised force of the frame
+  rotation, as in the reference; θ_J (`joint_frame_angles`) is read from these bodies;
 * grasps: `ObjectJointRevolute2D` end effector ↔ target point, switched by `activeConnector`;
   wrist bistop: `ObjectConnectorCoordinateSpringDamperExt` with limit stops between the
-  terminal frame θ and θ_T;
+  terminal link's distal hub θ and θ_T;
 * inputs held over the control period (zero-order hold, set once per period): τ_B
   (`LoadTorqueVector`), τ_m, thrust (`LoadForceVector`, body fixed), and, with an orbit or
   thrust, the field of docs/physics.md §5 as one generalised force vector on the mass
@@ -113,6 +119,8 @@ class LinkItems:
     rigid: bool
     frame_node: int  # coordinate 2 of this node is the link frame angle θ_i
     frame_body: int
+    prox_hub: int  # node whose coordinate 2 is the rotation of the proximal end section
+    dist_hub: int  # the same for the distal end section
     prox_marker: int  # position marker at the proximal pin
     dist_marker: int  # position marker at the distal pin (the end effector for link 3)
     nodes: list[int] = dc_field(default_factory=list)  # ANCF nodes (flexible)
@@ -263,8 +271,8 @@ class ExudynEngine:
         th_m = init.joint_angles if init.motor_angles is None else init.motor_angles
         om_m = init.joint_rates if init.motor_rates is None else init.motor_rates
         for j in range(6):
-            parent = self.base_node if j % 3 == 0 else self.links[j - 1].frame_node
-            child = self.links[j].frame_node
+            parent = self.base_node if j % 3 == 0 else self.links[j - 1].dist_hub
+            child = self.links[j].prox_hub
             nr = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[float(init.joint_angles[j])],
                                              initialCoordinates=[float(th_m[j] - init.joint_angles[j])],
                                              initialCoordinates_t=[float(om_m[j])],
@@ -291,7 +299,7 @@ class ExudynEngine:
                 markerNumbers=[mt, link.dist_marker], activeConnector=bool(init.grasp[k]))))
             psi_ref = float(init.target_pose[2]) - self.frame_ref[3 * k + 2]
             data = mbs.AddNode(NodeGenericData(initialCoordinates=[0.0, 0.0, 0.0], numberOfDataCoordinates=3))
-            m0 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=link.frame_node, coordinate=2))
+            m0 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=link.dist_hub, coordinate=2))
             m1 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=self.target_node, coordinate=2))
             self.bistops.append(mbs.AddObject(ObjectConnectorCoordinateSpringDamperExt(
                 markerNumbers=[m0, m1], nodeNumber=data, stiffness=0.0, damping=0.0,
@@ -324,7 +332,7 @@ class ExudynEngine:
         v = vel + om * _perp(0.5 * L * e)
         n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*com, th], initialVelocities=[*v, om]))
         b = mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=p.link.mass, inertia=p.link.inertia_z))
-        return LinkItems(i, True, n, b,
+        return LinkItems(i, True, n, b, n, n,
                          mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[-0.5 * L, 0.0, 0.0])),
                          mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[0.5 * L, 0.0, 0.0])),
                          basis=basis)
@@ -347,7 +355,8 @@ class ExudynEngine:
         pp = mbs.AddObject(ObjectJointPrismatic2D(markerNumbers=[tip, mf], axisMarker0=[1.0, 0.0, 0.0],
                                                   normalMarker1=[0.0, 1.0, 0.0], constrainRotation=False,
                                                   activeConnector=basis == PP))
-        item = LinkItems(i, False, nf, bf, prox, dist, nodes, elements, pp_joint=pp, basis=basis)
+        item = LinkItems(i, False, nf, bf, links.add_hub(mbs, nodes[0], th), links.add_hub(mbs, nodes[-1], th),
+                         prox, dist, nodes, elements, pp_joint=pp, basis=basis)
         if terminal:
             # PF: P = R + (L/I_0) ∫ρ ξ (r − R) dξ on the frame axis
             e = np.array([math.cos(th), math.sin(th)])
@@ -379,6 +388,8 @@ class ExudynEngine:
         self.i_base = idx(self.base_node) + np.arange(3)
         self.i_target = idx(self.target_node) + np.arange(3)
         self.i_frame = np.array([idx(it.frame_node) + 2 for it in self.links])
+        self.i_hub_prox = np.array([idx(it.prox_hub) + 2 for it in self.links])
+        self.i_hub_dist = np.array([idx(it.dist_hub) + 2 for it in self.links])
         self.i_rotor = np.array([idx(n) for n in self.rotor_nodes])
         for it in self.links:
             if it.rigid:
@@ -496,18 +507,33 @@ class ExudynEngine:
     def time(self) -> float:
         return self.t
 
+    def _section_joint_angles(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """ψ_J, ψ̇_J: child's proximal hub minus parent's distal hub (the base for joint 1)."""
+        thB, omB = q[self.i_base[2]], v[self.i_base[2]]
+        hp, hpd = q[self.i_hub_prox], v[self.i_hub_prox]
+        hd, hdd = q[self.i_hub_dist], v[self.i_hub_dist]
+        parents = np.array([thB, hd[0], hd[1], thB, hd[3], hd[4]])
+        parents_d = np.array([omB, hdd[0], hdd[1], omB, hdd[3], hdd[4]])
+        return hp - parents, hpd - parents_d
+
+    def _wrist_angles(self, q) -> np.ndarray:
+        """ψ_w: θ_T relative to the distal hub of each terminal link."""
+        return q[self.i_target[2]] - q[self.i_hub_dist[[2, 5]]]
+
     def sensors(self) -> Sensors:
         q, v = self._qv()
         th, om = self._frame_angles(q, v)
-        thB, omB = q[self.i_base[2]], v[self.i_base[2]]
-        parents = np.array([thB, th[0], th[1], thB, th[3], th[4]])
-        parents_d = np.array([omB, om[0], om[1], omB, om[3], om[4]])
+        thB = q[self.i_base[2]]
+        psi, psid = self._section_joint_angles(q, v)
         rE, rEd = self._end_effectors(q, v)
         com, m = self._com(q)
         AB_T = _rot(thB).T
         return Sensors(
             time=self.t, base_pose_I=q[self.i_base].copy(), base_rate_I=v[self.i_base].copy(),
-            joint_angles=th - parents, joint_rates=om - parents_d,
+            joint_angles=psi, joint_rates=psid,
+            joint_frame_angles=th - np.array([thB, th[0], th[1], thB, th[3], th[4]]),
+            joint_frame_rates=om - np.array([v[self.i_base[2]], om[0], om[1], v[self.i_base[2]], om[3], om[4]]),
+            wrist_angles=self._wrist_angles(q),
             motor_angles=q[self.i_rotor].copy(), motor_rates=v[self.i_rotor].copy(),
             ee_pos_I=rE, ee_vel_I=rEd,
             target_pose_I=q[self.i_target].copy(), target_rate_I=v[self.i_target].copy(),
@@ -877,6 +903,8 @@ class ExudynEngine:
             "capture_gap_B": AB_T @ (rE[self.capture_arm - 1] - cap),
             "com_pos_B": AB_T @ (com - rB),
             "joint_angles": s.joint_angles,
+            "joint_frame_angles": s.joint_frame_angles,
+            "wrist_angles": s.wrist_angles,
             "motor_angles": s.motor_angles,
             "motor_torques": np.asarray(inputs.tau_m, float).copy(),
             "base_torque": float(inputs.tau_B),
@@ -909,10 +937,10 @@ class ExudynEngine:
                 el += self.mesh.strain_energy(qi, ei, ea)
         kin += 0.5 * p.motor.inertia * float(np.sum(s.motor_rates**2))
         el += 0.5 * p.motor.stiffness * float(np.sum((s.motor_angles - s.joint_angles) ** 2))
-        th = q[self.i_frame]
+        psi_w = self._wrist_angles(q)
         for k in range(2):
             if self.grasp_on[k]:
-                over = abs(q[self.i_target[2]] - th[3 * k + 2]) - p.wrist.limit
+                over = abs(psi_w[k]) - p.wrist.limit
                 if over > 0:
                     el += 0.5 * p.wrist.stiffness * over**2
         grav = self._tidal_energy(q) if self.orbit else 0.0

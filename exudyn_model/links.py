@@ -35,7 +35,10 @@ sys.exudynFast = True  # noqa: E402  (ENGINE-NOTES: the fast build, no range che
 # exudyn announces the fast build on stdout: keep it out of `--json` output
 with contextlib.redirect_stdout(io.StringIO()):
     import exudyn as exu  # noqa: E402
-from exudyn.itemInterface import NodePoint2DSlope1, ObjectANCFCable2D  # noqa: E402
+from exudyn.itemInterface import (  # noqa: E402
+    LoadTorqueVector, MarkerBodyPosition, MarkerNodePosition, MarkerNodeRigid,
+    NodePoint2DSlope1, NodeRigidBody2D, ObjectANCFCable2D, ObjectGround, ObjectJointGeneric,
+    ObjectJointRevolute2D, ObjectRigidBody2D)
 
 from rsmcheck.params import LinkParams, Params  # noqa: E402
 
@@ -196,6 +199,63 @@ def add_link(mbs, link: LinkParams, n_elements: int, pin, theta: float, pin_vel=
     elements = [mbs.AddObject(ObjectANCFCable2D(nodeNumbers=[nodes[k], nodes[k + 1]], length=le, **mat))
                 for k in range(n_elements)]
     return nodes, elements
+
+
+def add_hub(mbs, beam_node: int, theta: float) -> int:
+    """A massless rigid hub clamped to an ANCF end node: its rotation coordinate (node
+    coordinate 2) is the rotation of the beam's end section, where a joint's torques act
+    (docs/physics.md §3.3).  `NodeRigidBody2D` with an `ObjectRigidBody2D` of zero mass and
+    inertia, clamped by `ObjectJointGeneric` with x, y and the rotation about z constrained
+    (`MarkerNodeRigid` on both: the ANCF node's orientation is its slope direction).
+    `theta` is the section's angle in the reference configuration [rad]."""
+    node = mbs.GetNode(beam_node)
+    ref, vel = node["referenceCoordinates"], node["initialVelocities"]
+    slope, slope_rate = np.asarray(ref[2:4], float), np.asarray(vel[2:4], float)
+    omega = float(slope[0] * slope_rate[1] - slope[1] * slope_rate[0]) / float(slope @ slope)  # r'×ṙ'/|r'|²
+    hub = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[ref[0], ref[1], float(theta)],
+                                      initialVelocities=[float(vel[0]), float(vel[1]), omega]))
+    mbs.AddObject(ObjectRigidBody2D(nodeNumber=hub, mass=0.0, inertia=0.0))
+    mbs.AddObject(ObjectJointGeneric(markerNumbers=[mbs.AddMarker(MarkerNodeRigid(nodeNumber=beam_node)),
+                                                    mbs.AddMarker(MarkerNodeRigid(nodeNumber=hub))],
+                                     constrainedAxes=[1, 1, 0, 0, 0, 1]))
+    return hub
+
+
+def static_end_couples(params: Params | LinkParams, couple_0: float, couple_L: float,
+                       n_elements: int = N_ELEMENTS_DEFAULT) -> dict[str, float]:
+    """One link pinned at both ends (x, y of both end nodes on the ground), couples
+    `couple_0` and `couple_L` [N·m, counter-clockwise] on the hubs of its end sections,
+    Exudyn's static solver.  Returns the transverse deflection at mid-span [m] and the
+    rotations of the two end sections [rad] (hub angles), for the beam-formula tests."""
+    link = params.link if isinstance(params, Params) else params
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddObject(ObjectGround())
+    nodes, _ = add_link(mbs, link, n_elements, (0.0, 0.0), 0.0, damping=False)
+    hubs = [add_hub(mbs, nodes[0], 0.0), add_hub(mbs, nodes[-1], 0.0)]
+    for node, x in ((nodes[0], 0.0), (nodes[-1], link.length)):
+        mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[
+            mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=[x, 0.0, 0.0])),
+            mbs.AddMarker(MarkerNodePosition(nodeNumber=node))]))
+    for hub, couple in zip(hubs, (couple_0, couple_L)):
+        marker = mbs.AddMarker(MarkerNodeRigid(nodeNumber=hub))
+        mbs.AddLoad(LoadTorqueVector(markerNumber=marker, loadVector=[0.0, 0.0, float(couple)]))
+    mbs.Assemble()
+    s = exu.SimulationSettings()
+    s.solution.file.write = False
+    s.solution.sensors.active = False
+    s.staticSolver.verboseMode = 0
+    # the axial force's round-off floor (∝ ε·EA, docs/exudyn.md §4) sets the absolute tolerance
+    s.staticSolver.newton.absoluteTolerance = 1e-2
+    s.staticSolver.newton.relativeTolerance = 1e-10
+    s.linearSolver.solverType = exu.LinearSolverType.EXUdense
+    with contextlib.redirect_stdout(io.StringIO()):
+        mbs.SolveStatic(s)
+    mesh = LinkMesh(n_elements, link.length, link.rho_a)
+    q = np.concatenate([np.asarray(mbs.GetNodeOutput(n, exu.OutputVariableType.Coordinates), float)
+                        + np.asarray(mbs.GetNode(n)["referenceCoordinates"], float) for n in nodes])
+    rot = [float(mbs.GetNodeOutput(h, exu.OutputVariableType.Coordinates)[2]) for h in hubs]
+    return {"mid_m": float((mesh.pos_matrix(0.5 * link.length) @ q)[1]), "slope_0": rot[0], "slope_L": rot[1]}
 
 
 # --- eigenfrequencies of one link ------------------------------------------------------

@@ -2,25 +2,35 @@
 
 Read next to the paper (Sect. 2, Appendix) and docs/physics.md.  Everything here is a
 `numba.njit` function on arrays; `reference_model.model` builds the arrays and gives
-them names.
+them names.  The model's constant arrays travel as one named tuple `ModelArrays`, the
+switching state (bases, grasps, held points) as `Switches`.
 
 Coordinates (docs/physics.md §1)
 -------------------------------
-q_m  = [x_B, y_B, θ_B, θ_J1..θ_J6, A_link1.., .., A_link6..]      (nq)   eq. (4) ordering
+q_m  = [x_B, y_B, θ_B, θ_J1..θ_J6, a_link1.., .., a_link6..]      (nq)   eq. (4) ordering
 X_T  = [x_T, y_T, θ_T]                                             (3)
-θ_m  = six motor angles, relative to the parent body               (6)
+θ_m  = six motor angles, relative to the parent end section       (6)
 Y    = [q_m, X_T] (ny = nq + 3),  Y* = [Y, θ_m] (ns = ny + 6)      eq. (7)
 ODE state x = [Y*, Ẏ*, r_O (2), v_O (2), m_used]: r_O, v_O are the co-moving reference
-point (SPEC §3.4), m_used the propellant burnt.
+point (docs/physics.md §5), m_used the propellant burnt.
 
-Newtonian coordinates of a link (the X_m of eq. A.1): X_i = [R_i (2), θ_i, A_i (n_i)] —
+Newtonian coordinates of a link (the X_m of eq. A.1): X_i = [R_i (2), θ_i, a_i (n_i)] —
 origin of the link frame (its proximal pin), frame angle, modal amplitudes.  A material
-point at abscissa ξ is at r = R + A(θ) u(ξ), u = (ξ, w(ξ)), w = Σ A_j φ_j (eq. 1).
+point at abscissa ξ is at r = R + A(θ) u(ξ), u = (ξ, w(ξ)), w = Σ a_j φ_j (eq. 1); its
+cross-section is turned by θ + w'(ξ).  (A(·) is the 2×2 rotation; the constraint Jacobian
+of eq. 8 is called `G` here to keep the letters apart.)
+
+Joints (docs/physics.md §3.3): a joint is a hinge between two end sections.  Its
+section-relative angle is ψ_J = θ_J + w_child'(0) − w_parent'(L) (the parent of the first
+joint is the rigid base), the spring-damper of eq. (5) acts on ψ_J − θ_m, and its
+generalised force u_J ∂ψ_J/∂q puts u_J on θ_J and the paper's u_e (eq. 4) on the
+amplitudes of both links.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -57,6 +67,16 @@ U_THRUST = 7  # thrust magnitude along +x_B
 N_INPUTS = 8
 
 N_LINKS = 6
+
+#: The model's constant arrays.  Per link i and basis b (PP = 0, PF = 1), shape index a:
+#:   phi_bar[i, b, a] = ∫ρφ_a dξ,  phi_x = ∫ρξφ_a dξ,  m_ff[i, b] = ∫ρφφᵀ,  k_ff = ∫EIφ''φ''ᵀ,
+#:   phi_tip = φ_a(L),  slope_0 = φ_a'(0),  slope_L = φ_a'(L),  phi_g[i, b, g, a] = φ_a(x_g[g]);
+#:   nm[i] shapes of link i, starting at q[mo[i]]; mount[k] the root of arm k (base frame).
+ModelArrays = namedtuple("ModelArrays", [
+    "nq", "sc", "nm", "mo", "phi_bar", "phi_x", "m_ff", "k_ff", "phi_tip", "slope_0", "slope_L",
+    "phi_g", "x_g", "w_g", "mount"])
+#: The switching part: basis[i] of each link, grasp_on[k], held points rho_G[k] (target frame).
+Switches = namedtuple("Switches", ["basis", "grasp_on", "rho_G"])
 
 
 @njit(cache=True)
@@ -101,8 +121,11 @@ def _bistop(psi, psid, lim, k, c):
     return 0.0
 
 
+# =====================================================================================
+# Kinematics, eqs. (A.1)–(A.2)
+# =====================================================================================
 @njit(cache=True)
-def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
+def kinematics(q, qd, m, basis):
     """Frames of the six links and the two end effectors, with Jacobians (A.1) and J̇q̇ (A.2).
 
     Returns th[6], om[6]                 frame angles and rates
@@ -115,7 +138,7 @@ def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
         R̈_{i+1} = R̈_i + θ̈_i A S d_i + A e_y ẅ_i(L) − θ̇_i² A d_i + 2 θ̇_i A S e_y ẇ_i(L).
     """
     nq = q.shape[0]
-    L = sc[S_L]
+    L = m.sc[S_L]
     th = np.zeros(N_LINKS)
     om = np.zeros(N_LINKS)
     R = np.zeros((N_LINKS, 2))
@@ -132,8 +155,8 @@ def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
     wb = qd[2]
     for k in range(2):
         # root of arm k: r_B + A(θ_B) r_M  (base frame mount point)
-        mx = cb * mount[k, 0] - sb * mount[k, 1]
-        my = sb * mount[k, 0] + cb * mount[k, 1]
+        mx = cb * m.mount[k, 0] - sb * m.mount[k, 1]
+        my = sb * m.mount[k, 0] + cb * m.mount[k, 1]
         px = q[0] + mx
         py = q[1] + my
         vx = qd[0] - wb * my
@@ -151,6 +174,7 @@ def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
         for s in range(3):
             i = 3 * k + s
             j = 3 + i
+            b = basis[i]
             theta = theta + q[j]
             Jt = Jt.copy()
             Jt[j] = 1.0
@@ -170,9 +194,9 @@ def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
             # distal pin d = (L, w(L)) and its rate (0, ẇ(L))
             wt = 0.0
             wtd = 0.0
-            for a in range(nm[i]):
-                wt += phi_tip[basis[i], a] * q[mo[i] + a]
-                wtd += phi_tip[basis[i], a] * qd[mo[i] + a]
+            for a in range(m.nm[i]):
+                wt += m.phi_tip[i, b, a] * q[m.mo[i] + a]
+                wtd += m.phi_tip[i, b, a] * qd[m.mo[i] + a]
             c = math.cos(theta)
             sn = math.sin(theta)
             dx = c * L - sn * wt  # A d
@@ -183,9 +207,9 @@ def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
             for col in range(nq):
                 Jn[0, col] += -dy * Jt[col]  # A S d = (−(A d)_y, (A d)_x)
                 Jn[1, col] += dx * Jt[col]
-            for a in range(nm[i]):
-                Jn[0, mo[i] + a] += eyx * phi_tip[basis[i], a]
-                Jn[1, mo[i] + a] += eyy * phi_tip[basis[i], a]
+            for a in range(m.nm[i]):
+                Jn[0, m.mo[i] + a] += eyx * m.phi_tip[i, b, a]
+                Jn[1, m.mo[i] + a] += eyy * m.phi_tip[i, b, a]
             px = px + dx
             py = py + dy
             vx = vx - omega * dy + eyx * wtd
@@ -205,53 +229,98 @@ def kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc):
 
 
 @njit(cache=True)
-def link_newton(i, q, qd, th, om, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, sc):
+def _slope(i, end_L, v, m, basis):
+    """w_i'(0) (end_L False) or w_i'(L) (True) of link i for amplitudes (or rates) in v."""
+    s = 0.0
+    b = basis[i]
+    for a in range(m.nm[i]):
+        s += (m.slope_L[i, b, a] if end_L else m.slope_0[i, b, a]) * v[m.mo[i] + a]
+    return s
+
+
+@njit(cache=True)
+def joint_section_angles(q, qd, m, basis):
+    """ψ_J and ψ̇_J of the six joints (docs/physics.md §3.3): the angle between the child's
+    proximal end section and the parent's distal one (the base for the first joint),
+        ψ_J = θ_J + w_child'(0) − w_parent'(L),
+    what a link-side joint encoder reads; θ_J is the frame-relative coordinate of Y."""
+    psi = np.zeros(6)
+    psid = np.zeros(6)
+    for j in range(6):
+        psi[j] = q[3 + j] + _slope(j, False, q, m, basis)
+        psid[j] = qd[3 + j] + _slope(j, False, qd, m, basis)
+        if j % 3 != 0:
+            psi[j] -= _slope(j - 1, True, q, m, basis)
+            psid[j] -= _slope(j - 1, True, qd, m, basis)
+    return psi, psid
+
+
+@njit(cache=True)
+def wrist_angles(q, qd, XT, XTd, th, om, m, basis):
+    """ψ_w and ψ̇_w of both wrists: target attitude relative to the distal end section of
+    the terminal link, ψ_w = θ_T − (θ_3 + w_3'(L)) (docs/physics.md §4.3)."""
+    psi = np.zeros(2)
+    psid = np.zeros(2)
+    for k in range(2):
+        i3 = 3 * k + 2
+        psi[k] = XT[2] - th[i3] - _slope(i3, True, q, m, basis)
+        psid[k] = XTd[2] - om[i3] - _slope(i3, True, qd, m, basis)
+    return psi, psid
+
+
+# =====================================================================================
+# One link in Newtonian coordinates, eq. (A.3)
+# =====================================================================================
+@njit(cache=True)
+def link_newton(i, q, qd, th, om, m, basis):
     """Floating-frame mass matrix M_X and force V + elastic of link i (eq. A.3 for one body).
 
-    With S1 = ∫ρ u dξ = (m L/2, φ̄·A) and ṙ = Ṙ + θ̇ A S u + A e_y Φ Ȧ:
-        M_RR = m I,  M_Rθ = A S S1,  M_RA = A e_y φ̄ᵀ,
-        M_θθ = ∫ρ|u|² + J_extra = I_0 + Aᵀ M_ff A + J_extra,  M_θA = ∫ρ ξ Φ,  M_AA = M_ff.
-    The part of r̈ not linear in Ẍ is −θ̇² A u + 2 θ̇ A S e_y Φ Ȧ, whence
-        V_R = θ̇² A S1 − 2 θ̇ A S e_y (φ̄·Ȧ),  V_θ = −2 θ̇ Aᵀ M_ff Ȧ,  V_A = θ̇² M_ff A,
-    and the elastic and Kelvin–Voigt forces −K_ff A − η K_ff Ȧ on the amplitudes.
+    With S1 = ∫ρ u dξ = (m L/2, φ̄·a) and ṙ = Ṙ + θ̇ A S u + A e_y Φ ȧ:
+        M_RR = m I,  M_Rθ = A S S1,  M_Ra = A e_y φ̄ᵀ,
+        M_θθ = ∫ρ|u|² + J_extra = I_0 + aᵀ M_ff a + J_extra,  M_θa = ∫ρ ξ Φ,  M_aa = M_ff.
+    The part of r̈ not linear in Ẍ is −θ̇² A u + 2 θ̇ A S e_y Φ ȧ, whence
+        V_R = θ̇² A S1 − 2 θ̇ A S e_y (φ̄·ȧ),  V_θ = −2 θ̇ aᵀ M_ff ȧ,  V_a = θ̇² M_ff a,
+    and the elastic and Kelvin–Voigt forces −K_ff a − η K_ff ȧ on the amplitudes.
     """
-    n = nm[i]
+    sc = m.sc
+    n = m.nm[i]
     b = basis[i]
-    m = sc[S_ML]
+    o = m.mo[i]
+    mass = sc[S_ML]
     c = math.cos(th[i])
     s = math.sin(th[i])
     w = om[i]
     nx = 3 + n
     M = np.zeros((nx, nx))
     V = np.zeros(nx)
-    s1x = 0.5 * m * sc[S_L]
+    s1x = 0.5 * mass * sc[S_L]
     s1y = 0.0
-    pbd = 0.0  # φ̄·Ȧ
+    pbd = 0.0  # φ̄·ȧ
     for a in range(n):
-        s1y += phi_bar[b, a] * q[mo[i] + a]
-        pbd += phi_bar[b, a] * qd[mo[i] + a]
+        s1y += m.phi_bar[i, b, a] * q[o + a]
+        pbd += m.phi_bar[i, b, a] * qd[o + a]
     # A S S1 = A (−S1y, S1x)
     ass_x = c * (-s1y) - s * s1x
     ass_y = s * (-s1y) + c * s1x
-    M[0, 0] = m
-    M[1, 1] = m
+    M[0, 0] = mass
+    M[1, 1] = mass
     M[0, 2] = ass_x
     M[1, 2] = ass_y
     M[2, 0] = ass_x
     M[2, 1] = ass_y
     mtt = sc[S_I0] + sc[S_JEX]
     for a in range(n):
-        M[0, 3 + a] = -s * phi_bar[b, a]
-        M[1, 3 + a] = c * phi_bar[b, a]
+        M[0, 3 + a] = -s * m.phi_bar[i, b, a]
+        M[1, 3 + a] = c * m.phi_bar[i, b, a]
         M[3 + a, 0] = M[0, 3 + a]
         M[3 + a, 1] = M[1, 3 + a]
-        M[2, 3 + a] = phi_x[b, a]
-        M[3 + a, 2] = phi_x[b, a]
+        M[2, 3 + a] = m.phi_x[i, b, a]
+        M[3 + a, 2] = m.phi_x[i, b, a]
         for e in range(n):
-            M[3 + a, 3 + e] = m_ff[b, a, e]
-            mtt += q[mo[i] + a] * m_ff[b, a, e] * q[mo[i] + e]
+            M[3 + a, 3 + e] = m.m_ff[i, b, a, e]
+            mtt += q[o + a] * m.m_ff[i, b, a, e] * q[o + e]
     M[2, 2] = mtt
-    # V_R = θ̇² A S1 − 2 θ̇ A S e_y (φ̄·Ȧ);  A S1 = (c S1x − s S1y, s S1x + c S1y); A S e_y = (−c, −s)
+    # V_R = θ̇² A S1 − 2 θ̇ A S e_y (φ̄·ȧ);  A S1 = (c S1x − s S1y, s S1x + c S1y); A S e_y = (−c, −s)
     V[0] = w * w * (c * s1x - s * s1y) + 2.0 * w * c * pbd
     V[1] = w * w * (s * s1x + c * s1y) + 2.0 * w * s * pbd
     vth = 0.0
@@ -260,24 +329,25 @@ def link_newton(i, q, qd, th, om, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, sc)
         mfd = 0.0
         kf = 0.0
         for e in range(n):
-            mfa += m_ff[b, a, e] * q[mo[i] + e]
-            mfd += m_ff[b, a, e] * qd[mo[i] + e]
-            kf += k_ff[b, a, e] * (q[mo[i] + e] + sc[S_ETA] * qd[mo[i] + e])
-        vth += -2.0 * w * q[mo[i] + a] * mfd
+            mfa += m.m_ff[i, b, a, e] * q[o + e]
+            mfd += m.m_ff[i, b, a, e] * qd[o + e]
+            kf += m.k_ff[i, b, a, e] * (q[o + e] + sc[S_ETA] * qd[o + e])
+        vth += -2.0 * w * q[o + a] * mfd
         V[3 + a] = w * w * mfa - kf
     V[2] = vth
     return M, V
 
 
 @njit(cache=True)
-def _field_link(i, q, th, R, rO, aunif, nm, mo, basis, phi_bar, phi_g, x_g, w_g, sc, M):
+def _field_link(i, q, th, R, rO, aunif, m, basis, M):
     """Generalised force of the acceleration field on link i, over its distributed mass.
 
     The uniform part (thrust inertia of the reference point, −a_thr) is exact:
     Q = M_X[:, R] a_unif.  The tidal part is integrated with Gauss points along the beam:
     Q = Σ_g w_g ρ [I; (A S u_g)ᵀ; (A e_y φ_g)ᵀ] Δg(r_O, R + A u_g).
     """
-    n = nm[i]
+    sc = m.sc
+    n = m.nm[i]
     b = basis[i]
     Q = np.zeros(3 + n)
     for r in range(3 + n):
@@ -288,35 +358,183 @@ def _field_link(i, q, th, R, rO, aunif, nm, mo, basis, phi_bar, phi_g, x_g, w_g,
     s = math.sin(th[i])
     rel = np.zeros(2)
     rho = sc[S_RHO]
-    for g in range(x_g.shape[0]):
+    for g in range(m.x_g.shape[0]):
         wg = 0.0
         for a in range(n):
-            wg += phi_g[b, g, a] * q[mo[i] + a]
-        ux = x_g[g]
+            wg += m.phi_g[i, b, g, a] * q[m.mo[i] + a]
+        ux = m.x_g[g]
         rel[0] = R[i, 0] + c * ux - s * wg
         rel[1] = R[i, 1] + s * ux + c * wg
         gx, gy = _tidal(rO, rel)
-        gx *= sc[S_MU] * rho * w_g[g]
-        gy *= sc[S_MU] * rho * w_g[g]
+        gx *= sc[S_MU] * rho * m.w_g[g]
+        gy *= sc[S_MU] * rho * m.w_g[g]
         Q[0] += gx
         Q[1] += gy
         # A S u = (−(A u)_y, (A u)_x),  A u = (c ux − s wg, s ux + c wg)
         Q[2] += -(s * ux + c * wg) * gx + (c * ux - s * wg) * gy
         for a in range(n):
-            Q[3 + a] += phi_g[b, g, a] * (-s * gx + c * gy)
+            Q[3 + a] += m.phi_g[i, b, g, a] * (-s * gx + c * gy)
     return Q
 
 
+# =====================================================================================
+# The coupled system, eqs. (3)–(12), step by step
+# =====================================================================================
 @njit(cache=True)
-def assemble(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-             mount, grasp_on, rho_G):
+def _base_rows(Mg, f, q, rO, mB, aunif, u, sc):
+    """Base rows of eq. (3): M = diag(m_B, m_B, J_B); thrust T A(θ_B) e_x through the COM,
+    control torque u_B (eq. 4), the field felt in O's frame (docs/physics.md §5)."""
+    cb = math.cos(q[2])
+    sb = math.sin(q[2])
+    thrust = u[U_THRUST]
+    Mg[0, 0] = mB
+    Mg[1, 1] = mB
+    Mg[2, 2] = sc[S_JB]
+    f[0] += mB * aunif[0] + thrust * cb
+    f[1] += mB * aunif[1] + thrust * sb
+    f[2] += u[U_TAU_B]
+    if sc[S_ORBIT] != 0.0:
+        gx, gy = _tidal(rO, q[0:2])
+        f[0] += sc[S_MU] * mB * gx
+        f[1] += sc[S_MU] * mB * gy
+
+
+@njit(cache=True)
+def _link_rows(Mg, f, q, qd, kin, rO, aunif, m, basis):
+    """The links projected on q_m, eq. (A.6):  Jᵀ M J q̈ = Jᵀ (V + F_ext − M J̇ q̇)."""
+    nq = m.nq
+    th, om, R, Rd, JR, Jth, cR = kin[0], kin[1], kin[2], kin[3], kin[4], kin[5], kin[6]
+    for i in range(N_LINKS):
+        n = m.nm[i]
+        nx = 3 + n
+        M, V = link_newton(i, q, qd, th, om, m, basis)
+        Q = _field_link(i, q, th, R, rO, aunif, m, basis, M)
+        J = np.zeros((nx, nq))
+        J[0] = JR[i, 0]
+        J[1] = JR[i, 1]
+        J[2] = Jth[i]
+        for a in range(n):
+            J[3 + a, m.mo[i] + a] = 1.0
+        F = V + Q
+        for r in range(nx):
+            F[r] -= M[r, 0] * cR[i, 0] + M[r, 1] * cR[i, 1]  # − M J̇q̇ (only R has J̇q̇ ≠ 0)
+        Mg[0:nq, 0:nq] += J.T @ (M @ J)
+        f[0:nq] += J.T @ F
+
+
+@njit(cache=True)
+def _joint_rows(f, q, qd, thm, thmd, u, m, basis):
+    """Joint springs and rotors, eqs. (5), (2) and the u_e of eq. (4).
+
+    Eq. (5) on the section-relative angle (docs/physics.md §3.3):
+        u_J = −K_m(ψ_J − θ_m) − C_m(ψ̇_J − θ̇_m),   ψ_J = θ_J + w_c'(0) − w_p'(L).
+    Its generalised force u_J ∂ψ_J/∂q: u_J on θ_J; on the amplitudes the paper's
+        u_e = u_J φ_c'(0) on the child link,  −u_J φ_p'(L) on the parent link,
+    i.e. +u_J on the child's proximal section and −u_J on the parent's distal section.
+    Eq. (2), the last row of eq. (7):  B_m θ̈_m = τ_m − K_m(θ_m − ψ_J) − C_m(θ̇_m − ψ̇_J)
+                                               = τ_m − u_J.
+    """
+    sc = m.sc
+    psi, psid = joint_section_angles(q, qd, m, basis)
+    uJ = np.zeros(6)
+    thmdd = np.zeros(6)
+    for j in range(6):
+        uJ[j] = -sc[S_KM] * (psi[j] - thm[j]) - sc[S_CM] * (psid[j] - thmd[j])
+        f[3 + j] += uJ[j]
+        c = j
+        bc = basis[c]
+        for a in range(m.nm[c]):
+            f[m.mo[c] + a] += uJ[j] * m.slope_0[c, bc, a]
+        if j % 3 != 0:
+            p = j - 1
+            bp = basis[p]
+            for a in range(m.nm[p]):
+                f[m.mo[p] + a] -= uJ[j] * m.slope_L[p, bp, a]
+        thmdd[j] = (u[U_TAU_M + j] - uJ[j]) / sc[S_BM]
+    return uJ, thmdd
+
+
+@njit(cache=True)
+def _target_rows(Mg, f, XT, rO, aunif, nq, sc):
+    """Target rows of eq. (3) (Newtonian, X_T): M = diag(m_T, m_T, J_T), the field."""
+    Mg[nq, nq] = sc[S_MT]
+    Mg[nq + 1, nq + 1] = sc[S_MT]
+    Mg[nq + 2, nq + 2] = sc[S_JT]
+    f[nq] += sc[S_MT] * aunif[0]
+    f[nq + 1] += sc[S_MT] * aunif[1]
+    if sc[S_ORBIT] != 0.0:
+        gx, gy = _tidal(rO, XT[0:2])
+        f[nq] += sc[S_MU] * sc[S_MT] * gx
+        f[nq + 1] += sc[S_MU] * sc[S_MT] * gy
+
+
+@njit(cache=True)
+def _grasp_rows(f, q, qd, XT, XTd, kin, m, sw):
+    """Wrist bistops and the grasp constraints of eqs. (8)–(12), for the active grasps.
+
+    Bistop (docs/physics.md §4.3): τ_w = bistop(ψ_w, ψ̇_w), +τ_w on the target, −τ_w on the
+    terminal link's distal section (generalised force −τ_w ∂(θ_3 + w_3'(L))/∂q).
+    Constraint:  φ_k = r_EE,k − (r_T + A(θ_T) ρ_G,k) = 0,  G = ∂φ/∂Y (eq. 8),
+        B = −Ġ Ẏ = −c_EE − θ̇_T² A(θ_T) ρ_G (eq. 10),   B* = B − 2α φ̇ − β² φ (eq. 12).
+    """
+    sc = m.sc
+    nq = m.nq
+    ny = nq + 3
+    th, om, Jth = kin[0], kin[1], kin[5]
+    rE, rEd, JE, cE = kin[7], kin[8], kin[9], kin[10]
+    nc = 2 * (sw.grasp_on[0] + sw.grasp_on[1])
+    G = np.zeros((nc, ny))
+    phi = np.zeros(nc)
+    phid = np.zeros(nc)
+    Bs = np.zeros(nc)
+    tauw = np.zeros(2)
+    psi_w, psid_w = wrist_angles(q, qd, XT, XTd, th, om, m, sw.basis)
+    cT = math.cos(XT[2])
+    sT = math.sin(XT[2])
+    row = 0
+    for k in range(2):
+        if sw.grasp_on[k] == 0:
+            continue
+        i3 = 3 * k + 2
+        b3 = sw.basis[i3]
+        tw = _bistop(psi_w[k], psid_w[k], sc[S_WLIM], sc[S_WK], sc[S_WC])
+        tauw[k] = tw
+        f[nq + 2] += tw
+        for col in range(nq):
+            f[col] -= tw * Jth[i3, col]
+        for a in range(m.nm[i3]):
+            f[m.mo[i3] + a] -= tw * m.slope_L[i3, b3, a]
+        gx = cT * sw.rho_G[k, 0] - sT * sw.rho_G[k, 1]  # A(θ_T) ρ_G
+        gy = sT * sw.rho_G[k, 0] + cT * sw.rho_G[k, 1]
+        for d in range(2):
+            for col in range(nq):
+                G[row + d, col] = JE[k, d, col]
+            G[row + d, nq + d] = -1.0
+        G[row, nq + 2] = gy  # −A S ρ_G = −(−gy, gx)
+        G[row + 1, nq + 2] = -gx
+        phi[row] = rE[k, 0] - XT[0] - gx
+        phi[row + 1] = rE[k, 1] - XT[1] - gy
+        phid[row] = rEd[k, 0] - XTd[0] + XTd[2] * gy
+        phid[row + 1] = rEd[k, 1] - XTd[1] - XTd[2] * gx
+        for d in range(2):
+            g_d = gx if d == 0 else gy
+            Bs[row + d] = (-cE[k, d] - XTd[2] * XTd[2] * g_d
+                           - 2.0 * sc[S_ALPHA] * phid[row + d] - sc[S_BETA] ** 2 * phi[row + d])
+        row += 2
+    return G, phi, phid, Bs, tauw
+
+
+@njit(cache=True)
+def assemble(x, u, m, sw):
     """The coupled system (3)/(6)–(12) at state x with inputs u.
 
     Returns Mg (ny×ny), f (ny) = −CẎ + NL + u  (right-hand side of eq. 6 without W R),
-    the active constraint rows A (nc×ny), φ (nc), φ̇ (nc), B* (nc) of eqs. (8)–(12),
+    the active constraint rows G (nc×ny), φ (nc), φ̇ (nc), B* (nc) of eqs. (8)–(12),
     the motor accelerations of eq. (2), the joint torques u_J of eq. (5) and the wrist
     torques, and the acceleration of the reference point.
     """
+    nq = m.nq
+    sc = m.sc
     ny = nq + 3
     ns = ny + 6
     q = x[0:nq]
@@ -330,9 +548,9 @@ def assemble(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, p
     mB = sc[S_MB0] - mused
     msys = sc[S_MTOT0] - mused
 
-    th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = kinematics(q, qd, nm, mo, basis, phi_tip, mount, sc)
+    kin = kinematics(q, qd, m, sw.basis)
 
-    # --- reference point: a_O = g(r_O) + T/m_sys A(θ_B) e_x; every element feels −a_thr
+    # reference point: a_O = g(r_O) + T/m_sys A(θ_B) e_x; every element feels −a_thr
     cb = math.cos(q[2])
     sb = math.sin(q[2])
     thrust = u[U_THRUST]
@@ -341,100 +559,11 @@ def assemble(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, p
 
     Mg = np.zeros((ny, ny))
     f = np.zeros(ny)
-
-    # --- base: M = diag(m_B, m_B, J_B); thrust T A(θ_B) e_x, control torque u_B (eq. 4)
-    Mg[0, 0] = mB
-    Mg[1, 1] = mB
-    Mg[2, 2] = sc[S_JB]
-    f[0] = mB * aunif[0] + thrust * cb
-    f[1] = mB * aunif[1] + thrust * sb
-    f[2] = u[U_TAU_B]
-    if sc[S_ORBIT] != 0.0:
-        gx, gy = _tidal(rO, q[0:2])
-        f[0] += sc[S_MU] * mB * gx
-        f[1] += sc[S_MU] * mB * gy
-
-    # --- links: Kane projection (A.6): Jᵀ M J q̈ = Jᵀ (V + F_ext − M J̇ q̇)
-    for i in range(N_LINKS):
-        n = nm[i]
-        nx = 3 + n
-        M, V = link_newton(i, q, qd, th, om, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, sc)
-        Q = _field_link(i, q, th, R, rO, aunif, nm, mo, basis, phi_bar, phi_g, x_g, w_g, sc, M)
-        J = np.zeros((nx, nq))
-        J[0] = JR[i, 0]
-        J[1] = JR[i, 1]
-        J[2] = Jth[i]
-        for a in range(n):
-            J[3 + a, mo[i] + a] = 1.0
-        F = V + Q
-        for r in range(nx):
-            F[r] -= M[r, 0] * cR[i, 0] + M[r, 1] * cR[i, 1]  # − M J̇q̇ (only R has J̇q̇ ≠ 0)
-        MJ = M @ J
-        Mg[0:nq, 0:nq] += J.T @ MJ
-        f[0:nq] += J.T @ F
-
-    # --- joint springs, eq. (5): u_J = −K_m(θ_J − θ_m) − C_m(θ̇_J − θ̇_m), on the joint
-    #     coordinate, i.e. +u_J on the child frame and −u_J on the parent frame
-    uJ = np.zeros(6)
-    thmdd = np.zeros(6)
-    for jn in range(6):
-        uJ[jn] = -sc[S_KM] * (q[3 + jn] - thm[jn]) - sc[S_CM] * (qd[3 + jn] - thmd[jn])
-        f[3 + jn] += uJ[jn]
-        # eq. (2), as the last row of eq. (7): B_m θ̈_m = τ_m − K_m(θ_m − θ_J) − C_m(θ̇_m − θ̇_J)
-        #                                              = τ_m − u_J
-        thmdd[jn] = (u[U_TAU_M + jn] - uJ[jn]) / sc[S_BM]
-
-    # --- target (Newtonian, eq. 3 second row)
-    Mg[nq, nq] = sc[S_MT]
-    Mg[nq + 1, nq + 1] = sc[S_MT]
-    Mg[nq + 2, nq + 2] = sc[S_JT]
-    f[nq] = sc[S_MT] * aunif[0]
-    f[nq + 1] = sc[S_MT] * aunif[1]
-    if sc[S_ORBIT] != 0.0:
-        gx, gy = _tidal(rO, XT[0:2])
-        f[nq] += sc[S_MU] * sc[S_MT] * gx
-        f[nq + 1] += sc[S_MU] * sc[S_MT] * gy
-
-    # --- grasps: wrist bistop torques and constraint rows (8)–(12)
-    nc = 2 * (grasp_on[0] + grasp_on[1])
-    A = np.zeros((nc, ny))
-    phi = np.zeros(nc)
-    phid = np.zeros(nc)
-    Bs = np.zeros(nc)
-    tauw = np.zeros(2)
-    cT = math.cos(XT[2])
-    sT = math.sin(XT[2])
-    row = 0
-    for k in range(2):
-        if grasp_on[k] == 0:
-            continue
-        i3 = 3 * k + 2
-        psi = XT[2] - th[i3]
-        psid = XTd[2] - om[i3]
-        tw = _bistop(psi, psid, sc[S_WLIM], sc[S_WK], sc[S_WC])
-        tauw[k] = tw
-        f[nq + 2] += tw
-        for col in range(nq):
-            f[col] -= tw * Jth[i3, col]
-        # φ_k = r_EE,k − (r_T + A(θ_T) ρ_G,k)
-        gx = cT * rho_G[k, 0] - sT * rho_G[k, 1]  # A(θ_T) ρ_G
-        gy = sT * rho_G[k, 0] + cT * rho_G[k, 1]
-        for d in range(2):
-            for col in range(nq):
-                A[row + d, col] = JE[k, d, col]
-            A[row + d, nq + d] = -1.0
-        A[row, nq + 2] = gy  # −A S ρ_G = −(−gy, gx)
-        A[row + 1, nq + 2] = -gx
-        phi[row] = rE[k, 0] - XT[0] - gx
-        phi[row + 1] = rE[k, 1] - XT[1] - gy
-        phid[row] = rEd[k, 0] - XTd[0] + XTd[2] * gy
-        phid[row + 1] = rEd[k, 1] - XTd[1] - XTd[2] * gx
-        # eq. (10): B = −Ȧ Ẏ = −c_EE − θ̇_T² A(θ_T) ρ_G;  eq. (12): B* = B − 2α φ̇ − β² φ
-        for d in range(2):
-            g_d = gx if d == 0 else gy
-            Bs[row + d] = (-cE[k, d] - XTd[2] * XTd[2] * g_d
-                           - 2.0 * sc[S_ALPHA] * phid[row + d] - sc[S_BETA] ** 2 * phi[row + d])
-        row += 2
+    _base_rows(Mg, f, q, rO, mB, aunif, u, sc)
+    _link_rows(Mg, f, q, qd, kin, rO, aunif, m, sw.basis)
+    uJ, thmdd = _joint_rows(f, q, qd, thm, thmd, u, m, sw.basis)
+    _target_rows(Mg, f, XT, rO, aunif, nq, sc)
+    G, phi, phid, Bs, tauw = _grasp_rows(f, q, qd, XT, XTd, kin, m, sw)
 
     aO = athr.copy()
     if sc[S_ORBIT] != 0.0:
@@ -442,50 +571,47 @@ def assemble(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, p
         r3 = r2 * math.sqrt(r2)
         aO[0] += -sc[S_MU] * rO[0] / r3
         aO[1] += -sc[S_MU] * rO[1] / r3
-    return Mg, f, A, phi, phid, Bs, thmdd, uJ, tauw, aO
+    return Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO
 
 
 @njit(cache=True)
-def solve_constrained(Mg, f, A, Bs):
+def solve_constrained(Mg, f, G, Bs):
     """Eq. (11) and the accelerations of eq. (6).
 
-    With W = −Aᵀ (R_cl is the force on the target; the end effector feels −R_cl):
-        R_cl = [A Mg⁻¹ W]⁻¹ [B* − A Mg⁻¹ f],     Ÿ = Mg⁻¹ (f + W R_cl).
+    With W = −Gᵀ (R_cl is the force on the target; the end effector feels −R_cl):
+        R_cl = [G Mg⁻¹ W]⁻¹ [B* − G Mg⁻¹ f],     Ÿ = Mg⁻¹ (f + W R_cl).
     """
-    nc = A.shape[0]
+    nc = G.shape[0]
     ny = Mg.shape[0]
-    rhs = np.zeros((ny, nc + 1))
-    rhs[:, 0] = f
+    rhs_ = np.zeros((ny, nc + 1))
+    rhs_[:, 0] = f
     for r in range(nc):
-        rhs[:, 1 + r] = A[r]
-    X = np.linalg.solve(Mg, rhs)  # [Mg⁻¹ f, Mg⁻¹ Aᵀ]
+        rhs_[:, 1 + r] = G[r]
+    X = np.linalg.solve(Mg, rhs_)  # [Mg⁻¹ f, Mg⁻¹ Gᵀ]
     if nc == 0:
         return np.ascontiguousarray(X[:, 0]), np.zeros(0)
     X0 = np.ascontiguousarray(X[:, 0])
-    XA = np.ascontiguousarray(X[:, 1:])
-    S = A @ XA  # A Mg⁻¹ Aᵀ  (= −A Mg⁻¹ W)
-    Rcl = np.linalg.solve(-S, Bs - A @ X0)
-    ydd = X0 - XA @ Rcl
+    XG = np.ascontiguousarray(X[:, 1:])
+    S = G @ XG  # G Mg⁻¹ Gᵀ  (= −G Mg⁻¹ W)
+    Rcl = np.linalg.solve(-S, Bs - G @ X0)
+    ydd = X0 - XG @ Rcl
     return ydd, Rcl
 
 
 @njit(cache=True)
-def rhs(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-        mount, grasp_on, rho_G):
+def rhs(x, u, m, sw):
     """ẋ of the full ODE: eq. (7) with (11)–(12), the reference point and mass depletion."""
-    ny = nq + 3
+    ny = m.nq + 3
     ns = ny + 6
-    Mg, f, A, phi, phid, Bs, thmdd, uJ, tauw, aO = assemble(
-        x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-        mount, grasp_on, rho_G)
-    ydd, Rcl = solve_constrained(Mg, f, A, Bs)
+    Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO = assemble(x, u, m, sw)
+    ydd, Rcl = solve_constrained(Mg, f, G, Bs)
     dx = np.empty_like(x)
     dx[0:ns] = x[ns:2 * ns]
     dx[ns:ns + ny] = ydd
     dx[ns + ny:2 * ns] = thmdd
     dx[2 * ns:2 * ns + 2] = x[2 * ns + 2:2 * ns + 4]
     dx[2 * ns + 2:2 * ns + 4] = aO
-    dx[2 * ns + 4] = u[U_THRUST] / sc[S_ISPG0]
+    dx[2 * ns + 4] = u[U_THRUST] / m.sc[S_ISPG0]
     return dx
 
 
@@ -506,8 +632,7 @@ _E = np.array([71.0 / 57600, 0.0, -71.0 / 16695, 71.0 / 1920, -17253.0 / 339200,
 
 
 @njit(cache=True)
-def integrate(x0, t0, t1, h, rtol, atol, hmax, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff,
-              k_ff, phi_tip, phi_g, x_g, w_g, mount, grasp_on, rho_G):
+def integrate(x0, t0, t1, h, rtol, atol, hmax, u, m, sw):
     """Integrate from t0 to t1 with inputs u held: embedded Dormand–Prince 5(4), error per
     component scaled by atol_i + rtol·|x_i|, step ratio limited to [0.2, 5].
 
@@ -518,8 +643,7 @@ def integrate(x0, t0, t1, h, rtol, atol, hmax, u, nq, sc, nm, mo, basis, phi_bar
     t = t0
     nx = x.shape[0]
     K = np.zeros((7, nx))
-    K[0] = rhs(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-               mount, grasp_on, rho_G)
+    K[0] = rhs(x, u, m, sw)
     nacc = 0
     nrej = 0
     h = min(h, hmax)
@@ -535,8 +659,7 @@ def integrate(x0, t0, t1, h, rtol, atol, hmax, u, nq, sc, nm, mo, basis, phi_bar
             for j in range(st):
                 if _A[st, j] != 0.0:
                     xs += h * _A[st, j] * K[j]
-            K[st] = rhs(xs, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g,
-                        x_g, w_g, mount, grasp_on, rho_G)
+            K[st] = rhs(xs, u, m, sw)
         xn = xs  # stage 7 is evaluated at the 5th-order solution (FSAL)
         err = 0.0
         for c in range(nx):

@@ -9,8 +9,8 @@ import numpy as np
 from cases.loader import Case
 from reference_model import core, switching
 from reference_model.implicit import integrate_trbdf2
-from reference_model.model import Configuration, ReferenceModel, terminal_basis
-from reference_model.observe import observe, system_com
+from reference_model.model import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, terminal_basis
+from reference_model.observe import observe, system_com, wrist_angles
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.errors import SimulationDiverged
 from rsmcheck.initial import InitialConfiguration, build_initial
@@ -38,11 +38,13 @@ class ReferenceEngine:
     name = "reference"
 
     def __init__(self, case: Case, params: Params | None = None, n_modes=None, rtol: float | None = None,
-                 integrator: str | None = None, h_max: float | None = None):
+                 integrator: str | None = None, h_max: float | None = None, static_modes: bool | None = None):
         self.params = params or case.params
         self.case = case
+        if static_modes is None:
+            static_modes = case.reference.get("static_modes", STATIC_MODES_DEFAULT)
         self.model = ReferenceModel(self.params, n_modes if n_modes is not None else case.n_modes,
-                                    orbit=case.orbit)
+                                    orbit=case.orbit, static_modes=static_modes)
         self.rtol = rtol if rtol is not None else case.solver.rtol
         self.integrator = integrator or getattr(case.solver, "integrator", "dopri5")
         if self.integrator not in INTEGRATORS:
@@ -113,11 +115,14 @@ class ReferenceEngine:
         kin = self.model.kinematics(q, qd, self.cfg)
         rE, rEd = kin[7], kin[8]
         com, m = system_com(self.model, x, self.cfg)
+        psi, psid = self.model.joint_section_angles(q, qd, self.cfg)
         c, s = math.cos(q[2]), math.sin(q[2])
         d = com - q[0:2]
         return Sensors(
             time=self.t, base_pose_I=q[0:3].copy(), base_rate_I=qd[0:3].copy(),
-            joint_angles=q[3:9].copy(), joint_rates=qd[3:9].copy(),
+            joint_angles=psi, joint_rates=psid, joint_frame_angles=q[3:9].copy(),
+            joint_frame_rates=qd[3:9].copy(),
+            wrist_angles=wrist_angles(self.model, x, self.cfg)[0],
             motor_angles=x[lay.motors].copy(), motor_rates=x[lay.motors_d].copy(),
             ee_pos_I=rE.copy(), ee_vel_I=rEd.copy(),
             target_pose_I=x[lay.target].copy(), target_rate_I=x[lay.target_d].copy(),
@@ -144,7 +149,8 @@ class ReferenceEngine:
                 "h_max": self.h_max,
                 "jacobians": int(self._work[2]),
                 "control_period": self.case.solver.control_period,
-                "n_modes": ",".join(str(n) for n in self.model.layout.n_modes),
+                "n_modes": ",".join(str(n) for n in self.model.n_eigen),
+                "static_modes": int(self.model.static_modes),
                 "steps": self.steps, "rejected_steps": self.rejected}
 
     def versions(self) -> dict[str, str]:

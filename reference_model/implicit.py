@@ -45,8 +45,7 @@ def _norm(v, x, rtol, atol):
 
 
 @njit(cache=True)
-def _jacobian(x, f0, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-              mount, grasp_on, rho_G, atol, rtol):
+def _jacobian(x, f0, u, m, sw, atol, rtol):
     n = x.shape[0]
     J = np.empty((n, n))
     xp = x.copy()
@@ -54,36 +53,31 @@ def _jacobian(x, f0, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_t
         # perturbation: √ε relative to the component's size or its tolerance scale
         e = 1.5e-8 * max(abs(x[c]), atol[c] / rtol)
         xp[c] = x[c] + e
-        fp = rhs(xp, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-                 mount, grasp_on, rho_G)
+        fp = rhs(xp, u, m, sw)
         J[:, c] = (fp - f0) / e
         xp[c] = x[c]
     return J
 
 
 @njit(cache=True)
-def _stage(base, guess, hd, Minv, rtol, atol, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff,
-           phi_tip, phi_g, x_g, w_g, mount, grasp_on, rho_G):
+def _stage(base, guess, hd, Minv, rtol, atol, u, m, sw):
     """Solve Y = base + h d f(Y) by simplified Newton; returns (Y, f(Y), converged)."""
     Y = guess.copy()
     for _ in range(_NEWTON_MAX):
-        fY = rhs(Y, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-                 mount, grasp_on, rho_G)
+        fY = rhs(Y, u, m, sw)
         G = Y - base - hd * fY
         dY = -(Minv @ G)
         Y = Y + dY
         if not np.all(np.isfinite(Y)):
             return Y, fY, False
         if _norm(dY, Y, rtol, atol) < _NEWTON_TOL:
-            fY = rhs(Y, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g,
-                     w_g, mount, grasp_on, rho_G)
+            fY = rhs(Y, u, m, sw)
             return Y, fY, True
     return Y, fY, False
 
 
 @njit(cache=True)
-def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, nq, sc, nm, mo, basis,
-                     phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g, mount, grasp_on, rho_G):
+def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, m, sw):
     """Integrate from t0 to t1 with inputs u held.
 
     J, Minv (n×n) and work = [have_J, h_of_Minv, jacobians, newton_failures] carry the
@@ -95,12 +89,10 @@ def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, nq, sc, 
     t = t0
     nacc = 0
     nrej = 0
-    k1 = rhs(x, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g,
-             mount, grasp_on, rho_G)
+    k1 = rhs(x, u, m, sw)
     fresh = False
     if work[0] == 0.0:
-        J[:, :] = _jacobian(x, k1, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g,
-                            x_g, w_g, mount, grasp_on, rho_G, atol, rtol)
+        J[:, :] = _jacobian(x, k1, u, m, sw, atol, rtol)
         work[0] = 1.0
         work[1] = -1.0
         work[2] += 1.0
@@ -117,19 +109,16 @@ def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, nq, sc, 
             Minv[:, :] = np.linalg.inv(np.eye(n) - hd * J)
             work[1] = h
         base2 = x + hd * k1
-        Y2, k2, ok = _stage(base2, x + _GAMMA * h * k1, hd, Minv, rtol, atol, u, nq, sc, nm, mo, basis,
-                            phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g, mount, grasp_on, rho_G)
+        Y2, k2, ok = _stage(base2, x + _GAMMA * h * k1, hd, Minv, rtol, atol, u, m, sw)
         if ok:
             base3 = x + h * _W * (k1 + k2)
             guess = x + h * (0.5 * k1 + 0.5 * k2)
-            Y3, k3, ok = _stage(base3, guess, hd, Minv, rtol, atol, u, nq, sc, nm, mo, basis, phi_bar,
-                                phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g, mount, grasp_on, rho_G)
+            Y3, k3, ok = _stage(base3, guess, hd, Minv, rtol, atol, u, m, sw)
         if not ok:
             work[3] += 1.0
             nrej += 1
             if not fresh:  # first remedy: a new Jacobian at the current state
-                J[:, :] = _jacobian(x, k1, u, nq, sc, nm, mo, basis, phi_bar, phi_x, m_ff, k_ff, phi_tip,
-                                    phi_g, x_g, w_g, mount, grasp_on, rho_G, atol, rtol)
+                J[:, :] = _jacobian(x, k1, u, m, sw, atol, rtol)
                 work[1] = -1.0
                 work[2] += 1.0
                 fresh = True

@@ -21,6 +21,10 @@ from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
 from rsmcheck.params import Params
 
 N_MAX_MODES = 6
+#: static correction shapes per flexible link when they are on (one per end couple)
+N_STATIC = 2
+#: the static correction shapes are on unless a case or caller says otherwise (docs/physics.md §2.4)
+STATIC_MODES_DEFAULT = True
 
 
 @dataclass(frozen=True)
@@ -112,29 +116,36 @@ def terminal_basis(grasp_on: Sequence[int]) -> np.ndarray:
 class ReferenceModel:
     """The Kane–Newton model of the paper built from `params`.
 
-    n_modes: modes per link, one int for all or six ints (0 = rigid link).
-    orbit:   tidal gravity about the co-moving reference point on (True) or off.
+    n_modes:      eigenmodes per link, one int for all or six ints (0 = rigid link).
+    static_modes: add the two static correction shapes (the response to unit end couples,
+                  docs/physics.md §2.4) to every flexible link's basis.
+    orbit:        tidal gravity about the co-moving reference point on (True) or off.
     """
 
-    def __init__(self, params: Params, n_modes: int | Sequence[int] = 2, orbit: bool = False):
+    def __init__(self, params: Params, n_modes: int | Sequence[int] = 2, orbit: bool = False,
+                 static_modes: bool = STATIC_MODES_DEFAULT):
         if isinstance(n_modes, (int, np.integer)):
             n_modes = (int(n_modes),) * core.N_LINKS
-        n_modes = tuple(int(n) for n in n_modes)
-        if len(n_modes) != core.N_LINKS or any(n < 0 or n > N_MAX_MODES for n in n_modes):
-            raise ValueError(f"n_modes must be 6 integers in 0..{N_MAX_MODES}, got {n_modes}")
+        n_eigen = tuple(int(n) for n in n_modes)
+        if len(n_eigen) != core.N_LINKS or any(n < 0 or n > N_MAX_MODES for n in n_eigen):
+            raise ValueError(f"n_modes must be 6 integers in 0..{N_MAX_MODES}, got {n_eigen}")
         self.params = params
         self.orbit = orbit
-        offsets = tuple(9 + sum(n_modes[:i]) for i in range(core.N_LINKS))
-        self.layout = Layout(nq=9 + sum(n_modes), n_modes=n_modes, mode_offset=offsets)
+        self.static_modes = bool(static_modes)
+        self.n_eigen = n_eigen
         lk = params.link
-        nmax = max(max(n_modes), 1)
-        self.bases: dict[int, ModalBasis] = {
-            kind: modal_basis(kind, nmax, lk.length, lk.rho_a, lk.ei) for kind in (PP, PF)
-        }
-        self._arrays = self._pack(nmax)
+        n_static = N_STATIC if self.static_modes else 0
+        #: bases[i][kind]: the modal basis of link i in basis kind (PP, PF)
+        self.bases: list[dict[int, ModalBasis]] = [
+            {kind: modal_basis(kind, n, lk.length, lk.rho_a, lk.ei, n_static if n else 0) for kind in (PP, PF)}
+            for n in n_eigen]
+        shapes = tuple(b[PP].n for b in self.bases)
+        offsets = tuple(9 + sum(shapes[:i]) for i in range(core.N_LINKS))
+        self.layout = Layout(nq=9 + sum(shapes), n_modes=shapes, mode_offset=offsets)
+        self.arrays = self._pack()
 
     # ---- packing -------------------------------------------------------------------
-    def _pack(self, nmax: int) -> tuple:
+    def _pack(self) -> core.ModelArrays:
         p = self.params
         lk = p.link
         sc = np.zeros(core.N_SCALARS)
@@ -160,43 +171,51 @@ class ReferenceModel:
         sc[core.S_ISPG0] = p.actuators.isp * p.actuators.g0
         sc[core.S_ORBIT] = 1.0 if self.orbit else 0.0
         sc[core.S_MTOT0] = p.base.mass + p.target.mass + 6 * lk.mass
+        nmax = max(max(self.layout.n_modes), 1)
 
         def stack(attr: str) -> np.ndarray:
-            return np.ascontiguousarray(np.stack([getattr(self.bases[k], attr) for k in (PP, PF)]))
+            """(6, 2, ...) array of a ModalBasis attribute over links and bases; the shape
+            index (last axis) zero-padded to nmax."""
+            lead = getattr(self.bases[0][PP], attr).shape[:-1]
+            if attr in ("m_ff", "k_ff"):
+                lead = (nmax,)
+            out = np.zeros((core.N_LINKS, 2) + lead + (nmax,))
+            for i in range(core.N_LINKS):
+                for kind in (PP, PF):
+                    v = getattr(self.bases[i][kind], attr)
+                    out[(i, kind) + tuple(slice(0, d) for d in v.shape)] = v
+            return out
 
         phi_tip = stack("phi_tip")
-        phi_tip[PP] = 0.0  # sin(jπ) = 0 exactly: the PP chord frame passes through both pins
+        phi_tip[:, PP] = 0.0  # φ(L) = 0 exactly: the PP chord frame passes through both pins
         mount = np.array([p.geometry.mount_B(1), p.geometry.mount_B(2)], dtype=float)
-        return (
-            sc,
-            np.array(self.layout.n_modes, dtype=np.int64),
-            np.array(self.layout.mode_offset, dtype=np.int64),
-            stack("phi_bar"),
-            stack("phi_x"),
-            stack("m_ff"),
-            stack("k_ff"),
-            phi_tip,
-            stack("phi_gauss"),
-            self.bases[PP].x_gauss.copy(),
-            self.bases[PP].w_gauss.copy(),
-            mount,
-        )
+        ref = self.bases[0][PP]
+        return core.ModelArrays(
+            nq=self.layout.nq, sc=sc,
+            nm=np.array(self.layout.n_modes, dtype=np.int64),
+            mo=np.array(self.layout.mode_offset, dtype=np.int64),
+            phi_bar=stack("phi_bar"), phi_x=stack("phi_x"), m_ff=stack("m_ff"), k_ff=stack("k_ff"),
+            phi_tip=phi_tip, slope_0=stack("slope_0"), slope_L=stack("slope_L"),
+            phi_g=stack("phi_gauss"), x_g=ref.x_gauss.copy(), w_g=ref.w_gauss.copy(), mount=mount)
 
     @property
     def scalars(self) -> np.ndarray:
-        return self._arrays[0]
+        return self.arrays.sc
+
+    def switches(self, cfg: Configuration) -> core.Switches:
+        return core.Switches(cfg.basis, cfg.grasp_on, cfg.rho_G)
 
     def core_args(self, cfg: Configuration) -> tuple:
-        """Arguments of `core.rhs`/`core.assemble` after (x, u): model + configuration."""
-        sc, nm, mo, phi_bar, phi_x, m_ff, k_ff, phi_tip, phi_g, x_g, w_g, mount = self._arrays
-        return (self.layout.nq, sc, nm, mo, cfg.basis, phi_bar, phi_x, m_ff, k_ff, phi_tip,
-                phi_g, x_g, w_g, mount, cfg.grasp_on, cfg.rho_G)
+        """Arguments of `core.rhs`/`core.assemble` after (x, u): model arrays, switches."""
+        return self.arrays, self.switches(cfg)
 
     def kinematics(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> tuple:
         """`core.kinematics` for this model (frames, Jacobians, end effectors)."""
-        sc, nm, mo, _, _, _, _, phi_tip, _, _, _, mount = self._arrays
-        return core.kinematics(np.asarray(q, float), np.asarray(qd, float), nm, mo, cfg.basis,
-                               phi_tip, mount, sc)
+        return core.kinematics(np.asarray(q, float), np.asarray(qd, float), self.arrays, cfg.basis)
+
+    def joint_section_angles(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> tuple:
+        """ψ_J and ψ̇_J of the six joints (docs/physics.md §3.3)."""
+        return core.joint_section_angles(np.asarray(q, float), np.asarray(qd, float), self.arrays, cfg.basis)
 
     # ---- state helpers -------------------------------------------------------------
     def zero_state(self) -> np.ndarray:
@@ -219,9 +238,10 @@ class ReferenceModel:
             x[lay.target] = X_T
         if XT_d is not None:
             x[lay.target_d] = XT_d
-        # motors at the joint angles: no spring torque, so u_J enters only where asked for
-        x[lay.motors] = x[3:9]
-        x[lay.motors_d] = x[lay.ns + 3:lay.ns + 9]
+        # motors at the section angles ψ_J: no spring torque, so u_J enters only where asked for
+        psi, psid = self.joint_section_angles(x[lay.q], x[lay.qd], self._cfg_for((False, False)))
+        x[lay.motors] = psi
+        x[lay.motors_d] = psid
         return x
 
     def _cfg_for(self, grasp: Sequence[bool]) -> Configuration:
@@ -244,13 +264,13 @@ class ReferenceModel:
         x = self._state(q, qd)
         f = self.assemble(x, np.zeros(core.N_INPUTS), self._cfg_for((False, False)))[1][:nq]
         # remove the elastic/Kelvin–Voigt part so the result is purely inertial
-        sc, nm, mo, _, _, _, k_ff, *_ = self._arrays
+        ar = self.arrays
         cfg = self._cfg_for((False, False))
         for i in range(core.N_LINKS):
             sl = lay.modes(i)
             n = lay.n_modes[i]
-            kf = k_ff[cfg.basis[i], :n, :n]
-            f[sl] += kf @ (q[sl] + sc[core.S_ETA] * qd[sl])
+            kf = ar.k_ff[i, cfg.basis[i], :n, :n]
+            f[sl] += kf @ (q[sl] + ar.sc[core.S_ETA] * qd[sl])
         return -f
 
     def point_kinematics(self, q, qd, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -277,16 +297,16 @@ class ReferenceModel:
         jac = np.zeros((2, nq + 3))
         jac[0, 0] = jac[1, 1] = p.base.mass
         jac[0, nq] = jac[1, nq + 1] = p.target.mass
-        sc, nm, mo, phi_bar, *_ = self._arrays
+        phi_bar = self.arrays.phi_bar
         for i in range(core.N_LINKS):
             n = self.layout.n_modes[i]
             sl = self.layout.modes(i)
-            s1 = np.array([0.5 * p.link.mass * p.link.length, phi_bar[cfg.basis[i], :n] @ q[sl]])
+            s1 = np.array([0.5 * p.link.mass * p.link.length, phi_bar[i, cfg.basis[i], :n] @ q[sl]])
             c, s = np.cos(th[i]), np.sin(th[i])
             A = np.array([[c, -s], [s, c]])
             pos += p.link.mass * R[i] + A @ s1
             jac[:, :nq] += p.link.mass * JR[i] + np.outer(A @ np.array([-s1[1], s1[0]]), Jth[i])
-            jac[:, sl] += np.outer(A[:, 1], phi_bar[cfg.basis[i], :n])
+            jac[:, sl] += np.outer(A[:, 1], phi_bar[i, cfg.basis[i], :n])
         return pos / m_tot, jac / m_tot
 
     def momentum(self, q, qd, X_T, XT_d) -> np.ndarray:
@@ -304,8 +324,8 @@ class ReferenceModel:
         nq = lay.nq
         x = self._state(q, qd, X_T, XT_d)
         if u_J is not None:
-            # u_J = −K_m(θ_J − θ_m) with θ̇_m = θ̇_J: set the motor angles to produce it
-            x[lay.motors] = x[3:9] + np.asarray(u_J, float) / self.params.motor.stiffness
+            # u_J = −K_m(ψ_J − θ_m) with θ̇_m = ψ̇_J: set the motor angles to produce it
+            x[lay.motors] = x[lay.motors] + np.asarray(u_J, float) / self.params.motor.stiffness
         u = np.zeros(core.N_INPUTS)
         u[core.U_TAU_B] = tau_B
         cfg = self._cfg_for(grasp)
@@ -314,10 +334,9 @@ class ReferenceModel:
         sc[core.S_BETA] = 0.0
         sc[core.S_WK] = 0.0
         sc[core.S_WC] = 0.0
-        args = list(self.core_args(cfg))
-        args[1] = sc
-        Mg, f, A, _, _, Bs, *_ = core.assemble(x, u, *args)
-        ydd, Rc = core.solve_constrained(Mg, f, A, Bs)
+        arrays = self.arrays._replace(sc=sc)
+        Mg, f, G, _, _, Bs, *_ = core.assemble(x, u, arrays, self.switches(cfg))
+        ydd, Rc = core.solve_constrained(Mg, f, G, Bs)
         R_cl = np.zeros(4)
         row = 0
         for k in range(2):

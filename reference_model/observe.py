@@ -28,9 +28,8 @@ def link_s1(model: ReferenceModel, cfg: Configuration, q: np.ndarray, i: int) ->
     """S1 = ∫ρ u dξ of link i in its frame: (m L/2, φ̄·A) [kg·m]."""
     lay = model.layout
     n = lay.n_modes[i]
-    phi_bar = model._arrays[3]
     p = model.params.link
-    return np.array([0.5 * p.mass * p.length, phi_bar[cfg.basis[i], :n] @ q[lay.modes(i)]])
+    return np.array([0.5 * p.mass * p.length, model.arrays.phi_bar[i, cfg.basis[i], :n] @ q[lay.modes(i)]])
 
 
 def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> np.ndarray:
@@ -46,7 +45,7 @@ def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) 
     XT, XTd = x[lay.target], x[lay.target_d]
     mB = prm.base.mass - x[lay.m_used]
     th, om, R, Rd, *_ = model.kinematics(q, qd, cfg)
-    sc, nm, mo, phi_bar, phi_x, m_ff, *_ = model._arrays
+    ar = model.arrays
     p = mB * qd[0:2] + prm.target.mass * XTd[0:2]
     L = _cross(q[0:2], mB * qd[0:2]) + prm.base.inertia_z * qd[2]
     L += _cross(XT[0:2], prm.target.mass * XTd[0:2]) + prm.target.inertia_z * XTd[2]
@@ -58,10 +57,10 @@ def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) 
         s1 = link_s1(model, cfg, q, i)
         As1 = A @ s1
         ey = A[:, 1]
-        pl = prm.link.mass * Rd[i] + om[i] * np.array([-As1[1], As1[0]]) + ey * (phi_bar[b, :n] @ ad)
+        pl = prm.link.mass * Rd[i] + om[i] * np.array([-As1[1], As1[0]]) + ey * (ar.phi_bar[i, b, :n] @ ad)
         p += pl
-        inertia = sc[core.S_I0] + a @ m_ff[b, :n, :n] @ a + sc[core.S_JEX]
-        L += _cross(R[i], pl) + _cross(As1, Rd[i]) + om[i] * inertia + phi_x[b, :n] @ ad
+        inertia = ar.sc[core.S_I0] + a @ ar.m_ff[i, b, :n, :n] @ a + ar.sc[core.S_JEX]
+        L += _cross(R[i], pl) + _cross(As1, Rd[i]) + om[i] * inertia + ar.phi_x[i, b, :n] @ ad
     return np.array([p[0], p[1], L])
 
 
@@ -70,7 +69,7 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
     """(kinetic, elastic, gravitational) [J].
 
     kinetic       ½ Ẏᵀ M_g Ẏ + ½ Σ B_m θ̇_m²        (M_g of eq. 6 is the exact kinetic metric)
-    elastic       ½ Σ Aᵀ K_ff A + ½ Σ K_m (θ_m − θ_J)² + ½ k_w (|ψ| − ψ_lim)² beyond the stops
+    elastic       ½ Σ aᵀ K_ff a + ½ Σ K_m (θ_m − ψ_J)² + ½ k_w (|ψ_w| − ψ_lim)² beyond the stops
     gravitational tidal potential about O (orbit on), Gauss points along the links
     """
     lay = model.layout
@@ -78,18 +77,17 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
     Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
     kin = 0.5 * Yd @ Mg @ Yd + 0.5 * prm.motor.inertia * np.sum(x[lay.motors_d] ** 2)
     q = x[lay.q]
-    k_ff = model._arrays[6]
     el = 0.0
     for i in range(core.N_LINKS):
         n = lay.n_modes[i]
         a = q[lay.modes(i)]
-        el += 0.5 * a @ k_ff[cfg.basis[i], :n, :n] @ a
-    el += 0.5 * prm.motor.stiffness * np.sum((x[lay.motors] - q[3:9]) ** 2)
-    th = model.kinematics(q, x[lay.qd], cfg)[0]
+        el += 0.5 * a @ model.arrays.k_ff[i, cfg.basis[i], :n, :n] @ a
+    psi_J, _ = model.joint_section_angles(q, x[lay.qd], cfg)
+    el += 0.5 * prm.motor.stiffness * np.sum((x[lay.motors] - psi_J) ** 2)
+    psi_w, _ = wrist_angles(model, x, cfg)
     for k in range(2):
         if cfg.grasp_on[k]:
-            psi = x[lay.target][2] - th[3 * k + 2]
-            over = abs(psi) - prm.wrist.limit
+            over = abs(psi_w[k]) - prm.wrist.limit
             if over > 0:
                 el += 0.5 * prm.wrist.stiffness * over**2
     grav = 0.0
@@ -107,16 +105,24 @@ def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> fl
     mB = prm.base.mass - x[lay.m_used]
     e = mB * core._tidal_potential(rO, q[0:2]) + prm.target.mass * core._tidal_potential(rO, x[lay.target][0:2])
     th, _, R, *_ = model.kinematics(q, x[lay.qd], cfg)
-    bas = model.bases
     for i in range(core.N_LINKS):
         n = lay.n_modes[i]
         a = q[lay.modes(i)]
-        basis = bas[int(cfg.basis[i])]
+        basis = model.bases[i][int(cfg.basis[i])]
         A = rotation(th[i])
         for xg, wg, ph in zip(basis.x_gauss, basis.w_gauss, basis.phi_gauss):
             rel = R[i] + A @ np.array([xg, ph[:n] @ a])
             e += prm.link.rho_a * wg * core._tidal_potential(rO, rel)
     return mu * e
+
+
+def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, np.ndarray]:
+    """ψ_w, ψ̇_w of both wrists: θ_T relative to the distal end section of the terminal link
+    (docs/physics.md §4.3), whether or not the arm holds the target."""
+    lay = model.layout
+    q, qd = x[lay.q], x[lay.qd]
+    th, om, *_ = model.kinematics(q, qd, cfg)
+    return core.wrist_angles(q, qd, x[lay.target], x[lay.target_d], th, om, model.arrays, cfg.basis)
 
 
 def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, float]:
@@ -161,10 +167,9 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
             row += 2
     cap = XT[0:2] + rotation(XT[2]) @ capture_point_T
     deflection = np.zeros(6)
-    phi_mid = np.stack([model.bases[0].phi_mid, model.bases[1].phi_mid])
     for i in range(core.N_LINKS):
-        n = lay.n_modes[i]
-        deflection[i] = phi_mid[cfg.basis[i], :n] @ q[lay.modes(i)]
+        deflection[i] = model.bases[i][int(cfg.basis[i])].phi_mid @ q[lay.modes(i)]
+    psi_J, _ = model.joint_section_angles(q, qd, cfg)
     # LVLH of the base: x radial outward, y along-track; without an orbit, inertial axes
     r_abs = x[lay.r_O] + rB
     radial = r_abs / np.linalg.norm(r_abs) if model.orbit else np.array([1.0, 0.0])
@@ -180,7 +185,9 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
         "ee2_speed": float(np.linalg.norm(rEd[1])),
         "capture_gap_B": AB_T @ (rE[capture_arm - 1] - cap),
         "com_pos_B": AB_T @ (com - rB),
-        "joint_angles": q[3:9].copy(),
+        "joint_angles": psi_J,
+        "joint_frame_angles": q[3:9].copy(),
+        "wrist_angles": wrist_angles(model, x, cfg)[0],
         "motor_angles": x[lay.motors].copy(),
         "motor_torques": u[core.U_TAU_M:core.U_TAU_M + 6].copy(),
         "base_torque": float(u[core.U_TAU_B]),

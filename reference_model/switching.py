@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_model import core
-from reference_model.beam_modes import PF, PP, mode_shapes, quadrature
+from reference_model.beam_modes import PF, PP, quadrature
 from reference_model.model import Configuration, ReferenceModel
 from reference_model.observe import rotation
 
@@ -39,10 +39,11 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
         release (PF):  tan δ = ∫ρ ξ w dξ / I_0           (mass-orthogonal rigid mode)
     Transverse field in the new frame, w'(ξ) = n'·(r(ξ) − R) = −ξ sin δ + w cos δ, rate
     ẇ'(ξ) = θ̇ w sin δ + (θ̇ ξ + ẇ) cos δ − θ̇' ξ, with θ̇' fixed by the same condition on the
-    rates; both projected on Φ_new by mass-weighted least squares (for PF constrained to
-    keep the free tip w'(L), ẇ'(L): the distal pin stays continuous; for PP the chord frame
-    already puts it at w'(L) = 0).  θ_J of the link takes
-    δ (and θ̇' − θ̇); the rotor angle and the proximal pin do not move.
+    rates; both projected on Φ_new by mass-weighted least squares constrained to keep the
+    proximal section's slope w'(0), ẇ'(0) (so the joint's section angle ψ_J, and with it the
+    spring torque of eq. 5, is continuous) and, for PF, the free tip w'(L), ẇ'(L) (the distal
+    pin stays continuous; for PP the chord frame already puts it at w'(L) = 0).  θ_J of the
+    link takes δ (and θ̇' − θ̇); the rotor angle and the proximal pin do not move.
 
     What the new rates do not carry is returned as a generalised momentum over Ẏ: the
     velocity field's residual r(ξ) = ṙ_old(ξ) − ṙ_new(ξ) at each material point, and J_extra's
@@ -61,14 +62,19 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     xi, wq = quadrature(L)
     q, qd = x[lay.q], x[lay.qd]
     sl = lay.modes(link)
-    phi_old = mode_shapes(old, n, L, xi)
-    phi_new = mode_shapes(new, n, L, xi)
+    shapes_old = model.bases[link][old].shapes
+    shapes_new = model.bases[link][new].shapes
+    ends = np.array([0.0, L])
+    phi_old = shapes_old(xi)
+    phi_new = shapes_new(xi)
     w = phi_old @ q[sl] if n else np.zeros_like(xi)
     wd = phi_old @ qd[sl] if n else np.zeros_like(xi)
-    w_L = mode_shapes(old, n, L, np.array([L]))[0] @ q[sl] if n else 0.0
-    wd_L = mode_shapes(old, n, L, np.array([L]))[0] @ qd[sl] if n else 0.0
+    w_L = shapes_old(ends[1:])[0] @ q[sl] if n else 0.0
+    wd_L = shapes_old(ends[1:])[0] @ qd[sl] if n else 0.0
     if old == PP:
-        w_L = wd_L = 0.0  # sin(jπ) = 0
+        w_L = wd_L = 0.0  # the chord frame passes through both pins
+    slope_old = shapes_old(ends[:1], 1)[0]
+    s0, sd0 = (slope_old @ q[sl], slope_old @ qd[sl]) if n else (0.0, 0.0)
     kin = model.kinematics(q, qd, cfg)
     th_old, om = kin[0][link], kin[1][link]
 
@@ -86,22 +92,26 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
         mass = rho * (phi_new.T * wq) @ phi_new
         b_p = rho * (phi_new.T * wq) @ w_new
         b_v = rho * (phi_new.T * wq) @ wd_new
+        # constraints: w'(0) and ẇ'(0) of the new field (the section keeps its angle and rate:
+        # w'(0) = −sin δ + w_old'(0) cos δ, ẇ'(0) = θ̇ w_old'(0) sin δ + (θ̇ + ẇ_old'(0)) cos δ − θ̇');
+        # for PF also the free tip w'(L) = n'·(r(L) − R) and its rate
+        rows = [shapes_new(ends[:1], 1)[0]]
+        c_p = [-math.sin(delta) + s0 * math.cos(delta)]
+        c_v = [math.sin(delta) * om * s0 + math.cos(delta) * (om + sd0) - om_new]
         if new == PF:
-            # The distal pin must stay where it is (docs/physics.md §4.4: every pin is
-            # continuous): least squares constrained to w'(L) = n'·(r(L) − R) and
-            # ẇ'(L) likewise (the PP tip of the old field has w(L) = ẇ(L) = 0).
-            tip = mode_shapes(PF, n, L, np.array([L]))[0]
-            w_tip = -L * math.sin(delta) + w_L * math.cos(delta)
-            wd_tip = math.sin(delta) * om * w_L + math.cos(delta) * (om * L + wd_L) - om_new * L
-            kkt = np.zeros((n + 1, n + 1))
-            kkt[:n, :n] = mass
-            kkt[:n, n] = tip
-            kkt[n, :n] = tip
-            a_new = np.linalg.solve(kkt, np.append(b_p, w_tip))[:n]
-            ad_new = np.linalg.solve(kkt, np.append(b_v, wd_tip))[:n]
-        else:
-            a_new = np.linalg.solve(mass, b_p)
-            ad_new = np.linalg.solve(mass, b_v)
+            rows.append(shapes_new(ends[1:])[0])
+            c_p.append(-L * math.sin(delta) + w_L * math.cos(delta))
+            c_v.append(math.sin(delta) * om * w_L + math.cos(delta) * (om * L + wd_L) - om_new * L)
+        if len(rows) >= n:  # too few shapes to honour every condition: the tip first
+            rows, c_p, c_v = rows[1:], c_p[1:], c_v[1:]
+        C = np.array(rows).reshape(len(rows), n)
+        nc = C.shape[0]
+        kkt = np.zeros((n + nc, n + nc))
+        kkt[:n, :n] = mass
+        kkt[:n, n:] = C.T
+        kkt[n:, :n] = C
+        a_new = np.linalg.solve(kkt, np.concatenate([b_p, c_p]))[:n]
+        ad_new = np.linalg.solve(kkt, np.concatenate([b_v, c_v]))[:n]
         res_p = float(np.max(np.abs(w_new - phi_new @ a_new)))
         x[lay.q][sl] = a_new
         x[lay.qd][sl] = ad_new

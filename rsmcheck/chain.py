@@ -4,7 +4,8 @@ Every run of a case stores its end state next to its HDF5 file, `DIR/CASE.end.js
 (`DIR/CASE.short.end.json` for the --short variant), one entry per engine:
 
 * ``rigid`` — the common part every engine can start from: base pose and rates, joint
-  and motor angles and rates, target pose and rates, grasp state, held points (target
+  angles and rates (both ψ_J between end sections and θ_J between link frames,
+  docs/physics.md §3.3), motor angles and rates, target pose and rates, grasp state, held points (target
   frame about the COM), orbit state of the co-moving point O, propellant used, system
   COM position and velocity (relative to O), end time.  It is taken from the engine's
   `Sensors` and observables, so it means the same for every engine.
@@ -48,8 +49,9 @@ from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun, Event, Phase, write_run
 
 FORMAT = "rsmcheck-endstate"
-FORMAT_VERSION = 1
-RIGID_KEYS = ("base_pose", "base_rate", "joint_angles", "joint_rates", "motor_angles", "motor_rates",
+FORMAT_VERSION = 2
+RIGID_KEYS = ("base_pose", "base_rate", "joint_angles", "joint_rates", "joint_frame_angles",
+              "joint_frame_rates", "motor_angles", "motor_rates",
               "target_pose", "target_rate", "grasp", "held_points", "orbit_r", "orbit_v", "m_used",
               "com_I", "com_vel_I", "t_end")
 
@@ -75,7 +77,8 @@ def rigid_state(engine, params) -> dict[str, Any]:
     mass = float(s.system_mass)
     return {
         "base_pose": s.base_pose_I, "base_rate": s.base_rate_I, "joint_angles": s.joint_angles,
-        "joint_rates": s.joint_rates, "motor_angles": s.motor_angles, "motor_rates": s.motor_rates,
+        "joint_rates": s.joint_rates, "joint_frame_angles": s.joint_frame_angles,
+        "joint_frame_rates": s.joint_frame_rates, "motor_angles": s.motor_angles, "motor_rates": s.motor_rates,
         "target_pose": s.target_pose_I, "target_rate": s.target_rate_I,
         "grasp": [int(g) for g in s.grasp_state], "held_points": held,
         "orbit_r": s.orbit_r_I, "orbit_v": s.orbit_v_I, "m_used": m_total0 - mass,

@@ -70,6 +70,8 @@ SCALE_FLOORS: dict[str, float] = {
     "capture_gap_B": 1e-4,
     "com_pos_B": 1e-4,
     "joint_angles": 1e-3,
+    "joint_frame_angles": 1e-3,
+    "wrist_angles": 1e-3,
     "motor_angles": 1e-3,
     "motor_torques": 1e-2,  # 0.01 N·m
     "base_torque": 1e-2,

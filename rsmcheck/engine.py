@@ -20,13 +20,18 @@ class Sensors:
     relative to the co-moving point O, `_B` base frame about the base COM).
 
     ee_pos_I / ee_vel_I: end effector of arm k in row k, relative to O, inertial axes.
+    joint_angles / joint_rates: ψ_J, ψ̇_J, between end sections (docs/physics.md §3.3): what
+    link-side joint encoders read; joint_frame_angles / _rates: θ_J, θ̇_J, between link frames.
+    wrist_angles: ψ_w of each arm, θ_T relative to the terminal link's distal section.
     """
 
     time: float
     base_pose_I: np.ndarray  # x, y, θ_B
     base_rate_I: np.ndarray  # ẋ, ẏ, θ̇_B
-    joint_angles: np.ndarray  # 6
-    joint_rates: np.ndarray  # 6
+    joint_angles: np.ndarray  # 6, ψ_J
+    joint_rates: np.ndarray  # 6, ψ̇_J
+    joint_frame_angles: np.ndarray  # 6, θ_J
+    joint_frame_rates: np.ndarray  # 6, θ̇_J
     motor_angles: np.ndarray  # 6
     motor_rates: np.ndarray  # 6
     ee_pos_I: np.ndarray  # (2, 2)
@@ -34,6 +39,7 @@ class Sensors:
     target_pose_I: np.ndarray  # x_T, y_T, θ_T
     target_rate_I: np.ndarray  # 3
     com_pos_B: np.ndarray  # system COM, 2
+    wrist_angles: np.ndarray  # 2, ψ_w
     grasp_state: np.ndarray  # 2, 1 where arm k holds the target
     system_mass: float
     orbit_r_I: np.ndarray  # position of O from Earth's centre (zeros when no orbit)

@@ -120,14 +120,20 @@ def build_initial(case: Case, params: Params | None = None) -> InitialConfigurat
 
 
 def _from_state(case: Case, params: Params, st) -> InitialConfiguration:
-    """The common rigid part of a stored end state (rsmcheck.chain.RIGID_KEYS)."""
+    """The common rigid part of a stored end state (rsmcheck.chain.RIGID_KEYS).
+
+    The links start undeformed, placed by the joint angles between their frames θ_J; every
+    joint spring keeps its twist θ_m − ψ_J (the rotor angles are shifted by θ_J − ψ_J, the
+    bend the links had at their end sections), so the joints carry on with their torques."""
     a = lambda k: np.array(st[k], float)  # noqa: E731
+    bend = a("joint_frame_angles") - a("joint_angles")
+    bend_rate = a("joint_frame_rates") - a("joint_rates")
     init = InitialConfiguration(
-        base_pose=a("base_pose"), base_rate=a("base_rate"), joint_angles=a("joint_angles"),
-        joint_rates=a("joint_rates"), target_pose=a("target_pose"), target_rate=a("target_rate"),
+        base_pose=a("base_pose"), base_rate=a("base_rate"), joint_angles=a("joint_frame_angles"),
+        joint_rates=a("joint_frame_rates"), target_pose=a("target_pose"), target_rate=a("target_rate"),
         grasp=np.array(st["grasp"], dtype=np.int64), rho_G=a("held_points"),
-        orbit_r=a("orbit_r"), orbit_v=a("orbit_v"), motor_angles=a("motor_angles"),
-        motor_rates=a("motor_rates"), m_used=float(st["m_used"]))
+        orbit_r=a("orbit_r"), orbit_v=a("orbit_v"), motor_angles=a("motor_angles") + bend,
+        motor_rates=a("motor_rates") + bend_rate, m_used=float(st["m_used"]))
     if case.orbit and not np.any(init.orbit_r):
         init = place_on_orbit(case, params, init, a("com_I"), a("com_vel_I"))
     return init

@@ -51,7 +51,21 @@ OBSERVABLES: tuple[ObservableSpec, ...] = (
         "capture_gap_B", (2,), "m", "end effector minus designated capture point (Fig. 10)"
     ),
     ObservableSpec("com_pos_B", (2,), "m", "system COM (Fig. 12)"),
-    ObservableSpec("joint_angles", (6,), "rad", "θ_J, arm 1 then arm 2, base outward"),
+    ObservableSpec(
+        "joint_angles", (6,), "rad",
+        "ψ_J, section-relative: child's proximal end section relative to the parent's distal "
+        "one, what a link-side joint encoder reads (docs/physics.md §3.3); arm 1 then arm 2, "
+        "base outward",
+    ),
+    ObservableSpec(
+        "joint_frame_angles", (6,), "rad",
+        "θ_J, between link frames (the coordinate of Y, docs/physics.md §1)",
+    ),
+    ObservableSpec(
+        "wrist_angles", (2,), "rad",
+        "ψ_w = θ_T − distal section angle of the terminal link, arm 1 then arm 2 (the bistop's "
+        "angle, docs/physics.md §4.3; reported also while the arm holds nothing)",
+    ),
     ObservableSpec("motor_angles", (6,), "rad", "θ_m, arm 1 then arm 2, base outward"),
     ObservableSpec(
         "motor_torques", (6,), "N·m", "applied τ_m after saturation (Fig. 14)"

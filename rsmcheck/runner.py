@@ -65,11 +65,6 @@ def capture_gap_B(s: Sensors, arm: int, rho_T: np.ndarray) -> np.ndarray:
     return _rot(s.base_pose_I[2]).T @ (s.ee_pos_I[arm - 1] - p)
 
 
-def wrist_angle(s: Sensors, arm: int) -> float:
-    """ψ = θ_T − θ_3 of `arm`; joint angles are between link frames, so θ_3 = θ_B + Σθ_J."""
-    return float(s.target_pose_I[2] - s.base_pose_I[2] - np.sum(s.joint_angles[3 * (arm - 1):3 * arm]))
-
-
 def terminal_progress(engine: str, case: str) -> Progress | None:
     """A progress line on stderr when it is a terminal (about once a second)."""
     if not sys.stderr.isatty():
@@ -182,11 +177,12 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
                     if seg.until == "capture":
                         seg_end = min(seg_end, t + seg.settle)
         for arm in (1, 2):
-            touching = bool(s.grasp_state[arm - 1]) and abs(wrist_angle(s, arm)) > params.wrist.limit
+            psi_w = float(s.wrist_angles[arm - 1])
+            touching = bool(s.grasp_state[arm - 1]) and abs(psi_w) > params.wrist.limit
             if touching != contact[arm - 1]:
                 contact[arm - 1] = touching
                 events.append(Event(t, "bistop_contact" if touching else "bistop_free",
-                                    f"arm={arm} psi={wrist_angle(s, arm):.6f}"))
+                                    f"arm={arm} psi={psi_w:.6f}"))
         u: Inputs = controller(s)
         if programme is not None and programme.log:
             events.extend(Event(te, kind, detail) for te, kind, detail in programme.log)

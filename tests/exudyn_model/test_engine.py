@@ -137,6 +137,8 @@ FLEX_TOL = {
     "ee2_speed": 2e-5,
     "capture_gap_B": 2e-5,
     "energy": 1e-5,
+    # 5e-7 rad apart, as the joint angles, but relative to the wrists' 0.01 rad in free drift
+    "wrist_angles": 1e-4,
 }
 
 
@@ -235,13 +237,14 @@ def test_case_exudyn_table_sets_the_step_and_options_override_it():
 
 
 def test_stalled_newton_step_is_retried_with_a_looser_tolerance():
-    """flex_arm_step with the absolute Newton tolerance at 100·ε·EA (1e-4 N, below the axial
-    round-off floor) stalls at t ≈ 25 ms; the engine retries that step from its start with a
-    10× looser tolerance and goes on (docs/exudyn.md §4)."""
+    """flex_arm_step with the absolute Newton tolerance at 30·ε·EA (3e-5 N, below the axial
+    round-off floor) stalls (measured: in each of the 100 control periods of 0.1 s); the
+    engine retries that step from its start with a 10× looser tolerance and goes on
+    (docs/exudyn.md §4).  At 1e-5 N even the retry fails at t = 0."""
     case = load_case("flex_arm_step").variant(True)
-    eng = ExudynEngine(case, newton_atol=1e-4, substeps=32)
+    eng = ExudynEngine(case, newton_atol=3e-5, substeps=32)
     r = run(eng, case, 0.1)
     assert eng.stats["newton_retries"] >= 1
-    assert eng.settings.timeIntegration.newton.absoluteTolerance == 1e-4  # restored
+    assert eng.settings.timeIntegration.newton.absoluteTolerance == 3e-5  # restored
     assert np.all(np.isfinite(np.asarray(r.observables["link_deflection"])))
     assert r.observables["time"][-1] == pytest.approx(0.1)

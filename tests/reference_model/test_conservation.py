@@ -2,8 +2,11 @@
 
 * Energy: closed chain (both grasps, closed_squeeze's geometry), no damping anywhere
   (link ζ = 0, C_m = 0), no control, no orbit, wrist far from its stops, flexible links
-  (2 modes each) vibrating, rotors off their joint angles, 60 s: the sum of the three
-  `energy` components drifts by ≤ 1e-6 of the total energy.
+  (2 eigenmodes + the 2 static shapes each) vibrating, rotors off their joint angles,
+  10 s: the sum of the three `energy` components drifts by ≤ 2e-7 of the energy of the
+  motion (measured 6.2e-8: 5.9e-9 J of 0.095 J).
+  (The undamped static shapes ring at 383 and 736 Hz, which holds DP5 at rtol 1e-9 near
+  50 µs: 200 000 steps for 10 s.)
 * Momentum: free floating (no orbit, no base torque), internal motor torques only
   (controller "constant"): linear and angular momentum (`momentum_I`) change by ≤ 1e-9 of
   their magnitude at t = 0, |p(0)| and |L(0)| (the initial rates give both a clear value).
@@ -21,13 +24,13 @@ from reference_model.engine import ReferenceEngine
 from rsmcheck.engine import Inputs
 from rsmcheck.runner import run
 
-ENERGY_REL_TOL = 1e-6
+ENERGY_REL_TOL = 2e-7
 MOMENTUM_REL_TOL = 1e-9
 RESIDUAL_TOL_M = 1e-8
 
 CONSERVATIVE_CLOSED = """
 description = "closed chain, conservative: no damping, no control, no orbit"
-duration = 60.0
+duration = 10.0
 [initial]
 base_pose = [0.0, 0.0, 0.0]
 base_rate = [0.0, 0.0, 0.005]
@@ -51,7 +54,7 @@ damping = 0.0
 
 
 @pytest.mark.slow
-def test_energy_conserved_closed_chain_flexible_60s(make_case):
+def test_energy_conserved_closed_chain_flexible(make_case):
     case = make_case("conservative_closed", CONSERVATIVE_CLOSED)
     assert case.params.link.damping_ratio == 0.0 and case.params.motor.damping == 0.0
     engine = ReferenceEngine(case)
@@ -59,13 +62,16 @@ def test_energy_conserved_closed_chain_flexible_60s(make_case):
     assert list(engine.cfg.grasp_on) == [1, 1]
     # arm 2's rates were solved by rsmcheck.initial so that the chain is closed and moving
     assert np.abs(engine.x[lay.ns + 6:lay.ns + 9]).max() > 1e-4
-    # links vibrating (≈2 µm, ≈0.4 mm/s) and rotors off their joints: every spring works
+    # links vibrating in their eigenmodes (≈2 µm, ≈0.4 mm/s; the static correction shapes
+    # start at rest, the coupling sets them going) and rotors off their joints: every
+    # spring works
     rng = np.random.default_rng(0)
     amp = 2e-6
     for i in range(6):
-        sl = lay.modes(i)
-        engine.x[lay.q][sl] = amp * rng.uniform(-1, 1, size=2) * [1.0, 0.25]
-        engine.x[lay.qd][sl] = amp * 200.0 * rng.uniform(-1, 1, size=2)
+        start = lay.modes(i).start
+        j = np.arange(1, engine.model.n_eigen[i] + 1)
+        engine.x[lay.q][start:start + j.size] = amp * rng.uniform(-1, 1, size=j.size) / j**2
+        engine.x[lay.qd][start:start + j.size] = amp * 200.0 * rng.uniform(-1, 1, size=j.size) / j
     engine.x[lay.motors] += amp * rng.uniform(-1, 1, size=6)
 
     u = Inputs()
@@ -78,8 +84,7 @@ def test_energy_conserved_closed_chain_flexible_60s(make_case):
         o = engine.observe(u)
         energy.append(o["energy"])
         momentum.append(o["momentum_I"])
-        ja, thT = o["joint_angles"], o["target_pose_B"][2]
-        psi.append([thT - ja[0:3].sum(), thT - ja[3:6].sum()])
+        psi.append(o["wrist_angles"])
     energy = np.array(energy)
     total = energy.sum(axis=1)
     drift = np.abs(total - total[0]).max()

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from reference_model import core
-from reference_model.beam_modes import PF, mode_shapes
+from reference_model.beam_modes import PF
 from reference_model.model import Configuration, ReferenceModel, terminal_basis
 from rsmcheck.params import Params
 
@@ -129,7 +129,7 @@ def test_end_effector_is_the_distal_pin_with_tip_deflection(model):
             i = 3 * k + 2
             n = lay.n_modes[i]
             kind = int(cfg.basis[i])
-            wL = (mode_shapes(kind, n, L, np.array([L]))[0] @ q[lay.modes(i)]) if kind == PF else 0.0
+            wL = (model.bases[i][kind].shapes(np.array([L]))[0] @ q[lay.modes(i)]) if kind == PF else 0.0
             c, s = math.cos(th[i]), math.sin(th[i])
             want = R[i] + np.array([c * L - s * wL, s * L + c * wL])
             assert np.allclose(rE[k], want, rtol=0, atol=1e-13)
@@ -174,7 +174,7 @@ def _link_kinetic_energy_by_quadrature(model, q, qd, cfg) -> float:
     T = 0.0
     for i in range(6):
         n = lay.n_modes[i]
-        phi = mode_shapes(int(cfg.basis[i]), n, L, xi)
+        phi = model.bases[i][int(cfg.basis[i])].shapes(xi)
         w = phi @ q[lay.modes(i)]
         wd = phi @ qd[lay.modes(i)]
         c, s = math.cos(th[i]), math.sin(th[i])

@@ -34,7 +34,6 @@ def _link_matrices(model: ReferenceModel, basis: int, link: int = 2) -> tuple[np
     """(M, K) of link `link` in `basis` at zero deflection and rest, Newtonian coordinates
     X = [R_x, R_y, θ, A_1..A_n], from core.link_newton."""
     lay = model.layout
-    sc, nm, mo, phi_bar, phi_x, m_ff, k_ff, *_ = model._arrays
     cfg = Configuration()
     cfg.basis[:] = basis
     nq = lay.nq
@@ -43,7 +42,7 @@ def _link_matrices(model: ReferenceModel, basis: int, link: int = 2) -> tuple[np
     def newton(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         qd = np.zeros(nq)
         th, om = model.kinematics(q, qd, cfg)[:2]
-        return core.link_newton(link, q, qd, th, om, nm, mo, cfg.basis, phi_bar, phi_x, m_ff, k_ff, sc)
+        return core.link_newton(link, q, qd, th, om, model.arrays, cfg.basis)
 
     q0 = np.zeros(nq)
     M, V0 = newton(q0)

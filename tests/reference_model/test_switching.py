@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from reference_model import core, switching
-from reference_model.beam_modes import PF, PP, mode_shapes
+from reference_model.beam_modes import PF, PP
 from reference_model.engine import ReferenceEngine
 from reference_model.model import ReferenceModel
 from reference_model.observe import energy_of_state, momentum_of_state
@@ -51,9 +51,8 @@ def material_field(model: ReferenceModel, x: np.ndarray, cfg, link: int, xi: np.
     lay = model.layout
     q, qd = x[lay.q], x[lay.qd]
     th, om, R, Rd = model.kinematics(q, qd, cfg)[:4]
-    n = lay.n_modes[link]
     kind = int(cfg.basis[link])
-    phi = mode_shapes(kind, n, model.params.link.length, xi)
+    phi = model.bases[link][kind].shapes(xi)
     if kind == PP:
         phi[np.isclose(xi, model.params.link.length), :] = 0.0  # sin(jπ) = 0
     w = phi @ q[lay.modes(link)]
@@ -71,7 +70,7 @@ def tip_values(model, x, cfg, link):
     L = model.params.link.length
     if cfg.basis[link] == PP:
         return 0.0, 0.0
-    phi = mode_shapes(PF, lay.n_modes[link], L, np.array([L]))[0]
+    phi = model.bases[link][int(cfg.basis[link])].shapes(np.array([L]))[0]
     return float(phi @ x[lay.q][lay.modes(link)]), float(phi @ x[lay.qd][lay.modes(link)])
 
 

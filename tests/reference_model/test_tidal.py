@@ -152,7 +152,7 @@ def test_generalised_tidal_forces_derive_from_the_energy_observable():
         x[3:9] = np.radians([60, -120, 60, -60, 120, -60]) + 0.1 * rng.normal(size=6)
         x[9:lay.nq] = 1e-6 * rng.normal(size=lay.nq - 9)
         x[lay.target] = [5.0, 0.5, 0.2]
-        x[lay.motors] = x[3:9]
+        x[lay.motors] = model.joint_section_angles(x[lay.q], x[lay.qd], cfg)[0]  # springs relaxed
         x[lay.r_O] = [R_LEO * math.cos(0.7), R_LEO * math.sin(0.7)]
 
         def potential(xx):
@@ -167,7 +167,7 @@ def test_generalised_tidal_forces_derive_from_the_energy_observable():
             xp, xm = x.copy(), x.copy()
             xp[c] += h
             xm[c] -= h
-            if 3 <= c < 9:  # moving a joint angle: keep the rotor spring relaxed
+            if 3 <= c < 9:  # moving a joint angle (and ψ_J with it): keep the rotor spring relaxed
                 xp[lay.ny + c - 3] += h
                 xm[lay.ny + c - 3] -= h
             grad[c] = (potential(xp) - potential(xm)) / (2 * h)

@@ -36,7 +36,8 @@ def sensors(q=None, qd=None, t=0.0, base=(0.0, 0.0, 0.0), com=(3.0, 0.0), target
     c, s = math.cos(base[2]), math.sin(base[2])
     rot = np.array([[c, -s], [s, c]])
     return Sensors(time=t, base_pose_I=np.array(base, float), base_rate_I=np.zeros(3), joint_angles=q,
-                   joint_rates=qd, motor_angles=q.copy(), motor_rates=qd.copy(),
+                   joint_rates=qd, joint_frame_angles=q.copy(), joint_frame_rates=qd.copy(),
+                   motor_angles=q.copy(), motor_rates=qd.copy(), wrist_angles=np.zeros(2),
                    ee_pos_I=np.array([base[:2] + rot @ e for e in ee]), ee_vel_I=np.zeros((2, 2)),
                    target_pose_I=np.array(target, float), target_rate_I=np.zeros(3),
                    com_pos_B=np.array(com, float), grasp_state=np.array([1, 0]), system_mass=918.94,

@@ -16,8 +16,12 @@ from rsmcheck.observables import (
     check_observables,
 )
 
-# SPEC §4, copied by hand: the test oracle for the schema in code.
+# The design contract's observable table, copied by hand (docs/physics.md §6 lists it), plus
+# the two the contract allows ("the other may be added as its own observable"): θ_J beside
+# ψ_J, and the wrist angles of the bistop.  The test oracle for the schema in code.
 SPEC_TABLE = {
+    "joint_frame_angles": (6,),
+    "wrist_angles": (2,),
     "time": (),
     "base_pose_I": (3,),
     "target_pose_B": (3,),
