@@ -106,7 +106,9 @@ Format (every key optional unless marked):
 
     [short]                          # the --short variant: replaces these keys
     duration = 5.0                   # (duration, segment, release, capture, controller,
-    [[short.segment]] ...            #  solver, compare); the mechanics stay the same
+    [[short.segment]] ...            #  solver, compare); the mechanics stay the same;
+                                     # without [[short.segment]] the full programme is
+                                     # flown and cut at the short duration
 
 A sequence case (the mission) has only `name`, `description`, `phases` (case names, each
 starting from the previous one's end state) and `short_phases` (the sequence for --short).
@@ -649,7 +651,9 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
     n_modes = ref.pop("n_modes", (2,) * 6)
     exudyn = _exudyn(w, kname("exudyn"), raw.get("exudyn", {}))
 
-    segments = _segments(w, kname("segment"), raw.get("segment", []), duration, point)
+    # a short variant that keeps the full programme is the full run cut at its duration
+    cut = is_short and "segment" not in short_keys
+    segments = _segments(w, kname("segment"), raw.get("segment", []), math.inf if cut else duration, point)
     if segments and controller.kind != "programme":
         raise InputError(w, kname("controller") + ".kind", f"must be \"programme\" for a case with segments, "
                          f"got {controller.kind!r}")

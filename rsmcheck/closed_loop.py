@@ -6,8 +6,9 @@ Each engine supplies its own continuous plant at rest in the case's initial conf
 `exudyn_model.modes.linear_plant`).  The rest is the shared controller's laws
 (rsmcheck.controllers, physics.md §6), linearised about a hold of that configuration:
 
-    r_k = (1 − α) r_{k−1} + α θ̇_J(t_k)                 rate filter, α = 1 − e^{−2π f_c Δt}
-    τ_k = −J_EEᵀ K_p e_EE(t_k) − K_d r_k (each arm),     eq. (14)
+    r_k = (1 − α) r_{k−1} + α ψ̇_J(t_k)                 rate filter (a case option), α = 1 − e^{−2π f_c Δt}
+                                                      (α = 1 without it: eq. 14 as written)
+    τ_k = −J_EEᵀ K_p e_EE(t_k) − K_d r_k (each arm),     eq. (14), ψ̇_J the link-side joint rates
     τ_B,k = −k_p θ_B(t_k) − k_d θ̇_B(t_k)                 eq. (13)
 
 held over [t_k, t_k+Δt) (zero-order hold), so that with Φ = e^{AΔt}, Γ = ∫₀^Δt e^{As} ds B
@@ -74,16 +75,23 @@ def closed_loop_exponents(A, B, C, ky, kr, alpha: float, dt: float) -> np.ndarra
     aug = expm(np.block([[A, B], [np.zeros((N_INPUTS, n + N_INPUTS))]]) * dt)
     phi, gam = aug[:n, :n], aug[:n, n:]
     cr = C[I_RATES]
-    # r_k = (1−α) r_{k−1} + α C_r x_k;  x_{k+1} = Φ x_k − Γ (K_y C x_k + K_r r_k)
-    top = np.hstack([phi - gam @ ky @ C - alpha * gam @ kr @ cr, -(1 - alpha) * gam @ kr])
-    bottom = np.hstack([alpha * cr, (1 - alpha) * np.eye(6)])
-    mu = np.linalg.eigvals(np.vstack([top, bottom]))
+    if alpha == 1.0:
+        # no filter: r_k = C_r x_k, no state of its own;  x_{k+1} = Φ x_k − Γ (K_y C + K_r C_r) x_k
+        mu = np.linalg.eigvals(phi - gam @ (ky @ C + kr @ cr))
+    else:
+        # r_k = (1−α) r_{k−1} + α C_r x_k;  x_{k+1} = Φ x_k − Γ (K_y C x_k + K_r r_k)
+        top = np.hstack([phi - gam @ ky @ C - alpha * gam @ kr @ cr, -(1 - alpha) * gam @ kr])
+        bottom = np.hstack([alpha * cr, (1 - alpha) * np.eye(6)])
+        mu = np.linalg.eigvals(np.vstack([top, bottom]))
+    mu = mu[mu != 0.0]  # a state the hold maps to zero in one sample (no dynamics to report)
     return np.log(mu.astype(complex)) / dt
 
 
-def rotor_modes(s: np.ndarray, f_lo: float = 60.0, f_hi: float = 130.0, sigma_max: float = 10.0) -> np.ndarray:
-    """The lightly damped exponents with f in [f_lo, f_hi] Hz (the 92 Hz rotor modes), by
-    frequency (the axial modes alias into the band but decay at ~1e4/s)."""
+def rotor_modes(s: np.ndarray, f_lo: float = 60.0, f_hi: float = 200.0, sigma_max: float = 200.0) -> np.ndarray:
+    """The exponents with f in [f_lo, f_hi] Hz and |σ| < sigma_max: the rotor modes (81–89 Hz
+    open loop: each rotor against its joint spring and the links' end sections; the sampled
+    rate feedback moves them, up to 140 Hz at p1's rigid-model gains), by frequency (the
+    axial modes of the FE links alias into the band but decay at ~1e4/s)."""
     keep = (s.imag > 2 * np.pi * f_lo) & (s.imag < 2 * np.pi * f_hi) & (np.abs(s.real) < sigma_max)
     s = s[keep]
     return s[np.argsort(s.imag)]

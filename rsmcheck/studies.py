@@ -12,9 +12,14 @@
 * `refinement_study`: the rows of a case's own `[compare]` table (error against its
   tolerance) for reference modes × Exudyn (step, EA/EI): which refinement of which engine
   brings a case to its tolerance (docs/exudyn.md §8, motor_step and release).
+* `orbit_study`: what flying in orbit changes in a mission phase: the phase's short
+  variant with and without its `[orbit]` (reference engine; without it the base holds its
+  attitude instead of tracking the retrograde direction), the largest difference of each
+  observable (docs/cases.md §4).
 
 Run: `python -m rsmcheck.studies rigid [CASE…]`, `python -m rsmcheck.studies convergence`,
-`python -m rsmcheck.studies refinement CASE --modes 2,4 --exudyn 32:1e5,256:1e6`.
+`python -m rsmcheck.studies refinement CASE --modes 2,4 --exudyn 32:1e5,256:1e6`,
+`python -m rsmcheck.studies orbit [CASE…]`.
 The Exudyn numbers come from Exudyn alone (`exudyn_model` never imports the reference);
 this module only compares the two.
 """
@@ -241,6 +246,48 @@ def refinement_study(case_name: str, modes: Sequence[int], exudyn: Sequence[tupl
     return doc
 
 
+MISSION_PHASES = ("p1_transport", "p2_capture_regrasp", "p3_com_alignment")
+#: what orbit_study reports: the observables a phase is judged by
+ORBIT_OBSERVABLES = ("base_pose_I", "ee1_pos_B", "ee2_pos_B", "target_pose_B", "target_attitude", "wrist_angles",
+                     "com_pos_B", "motor_torques", "base_torque", "link_deflection", "capture_gap_B")
+
+
+def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, log=None) -> dict[str, Any]:
+    """Each phase's short variant (stand-alone start) with its orbit and without it, the
+    reference engine: max_t |with − without| per observable (the base attitude is compared
+    relative to the orbital frame's turn: without the orbit the base holds its attitude,
+    with it the base tracks the retrograde direction, n = 1.06e-3 rad/s)."""
+    from dataclasses import replace
+
+    from cases.loader import OrbitSpec, load_case
+
+    doc: dict[str, Any] = {"study": "orbit: max_t |with orbit − without| of a phase's short variant, reference",
+                           "observables": list(ORBIT_OBSERVABLES), "cases": {}}
+    for name in cases:
+        case = load_case(name).variant(True)
+        flat = replace(case, orbit=False, orbit_spec=OrbitSpec(),
+                       initial=replace(case.initial, base_rate=(0.0, 0.0, 0.0)),
+                       segments=tuple(replace(sg, base="hold" if sg.base == "retrograde" else sg.base)
+                                      for sg in case.segments))
+        with_orbit, w1 = _run("reference", case, case.duration)
+        without, w2 = _run("reference", flat, flat.duration)
+        row = {}
+        for n in ORBIT_OBSERVABLES:
+            a = np.asarray(with_orbit.observables[n], float)
+            b = np.asarray(without.observables[n], float)
+            if n == "base_pose_I":  # the attitude relative to the frame it is held in
+                a = a.copy()
+                a[:, 2] -= a[0, 2] + case.initial.base_rate[2] * np.asarray(with_orbit.observables["time"])
+            row[n] = float(np.max(np.abs(a - b)))
+        doc["cases"][name] = {"duration": case.duration, "max_abs": row, "wall_s": [w1, w2],
+                              "events": {"with": [(e.time, e.kind) for e in with_orbit.events if e.kind != "segment"],
+                                         "without": [(e.time, e.kind) for e in without.events if e.kind != "segment"]}}
+        if log:
+            log(f"{name}: " + "  ".join(f"{k} {v:.2e}" for k, v in row.items()))
+        _write(out, doc)
+    return doc
+
+
 def _exudyn_grid(text: str) -> list[tuple[int, float]]:
     """'32:1e5,256:1e6' -> [(32, 1e5), (256, 1e6)] (an argparse type: a bad item is a
     one-line usage error)."""
@@ -289,6 +336,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     f.add_argument("--exudyn", type=_exudyn_grid, default=_exudyn_grid("32:1e5,128:1e5,128:1e6,256:1e6"),
                    help="SUBSTEPS:EA/EI pairs, comma-separated")
     f.add_argument("--out")
+    o = sub.add_parser("orbit")
+    o.add_argument("cases", nargs="*", default=list(MISSION_PHASES))
+    o.add_argument("--out", default=str(DATA_DIR / "orbit_effect.json"))
     a = p.parse_args(argv)
 
     def log(msg: str) -> None:
@@ -301,6 +351,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             out = Path(a.out) if a.out else DATA_DIR / f"rigid_steps_{a.constraints}.json"
             rigid_step_study(a.cases, a.substeps, duration=a.duration,
                              out=out, log=log, exudyn_options={"constraints": a.constraints})
+        elif a.study == "orbit":
+            orbit_study(a.cases, out=Path(a.out), log=log)
         elif a.study == "refinement":
             out = Path(a.out) if a.out else DATA_DIR / f"refinement_{a.case}.json"
             refinement_study(a.case, a.modes, a.exudyn, out=out, log=log)

@@ -1,7 +1,7 @@
 """The sampled closed loop of p1_rigid_gains (Fig. 6a), linearised in both engines: the same
-unstable 92 Hz rotor modes (docs/exudyn.md §10).  Each engine linearises its own model
-(rsmcheck.modes.reference_linear_plant, exudyn_model.modes.linear_plant); the controller's
-laws and the zero-order hold are the shared part (rsmcheck.closed_loop)."""
+unstable rotor modes (docs/cases.md §3.2, docs/exudyn.md §10).  Each engine linearises its
+own model (rsmcheck.modes.reference_linear_plant, exudyn_model.modes.linear_plant); the
+controller's laws and the zero-order hold are the shared part (rsmcheck.closed_loop)."""
 
 from __future__ import annotations
 
@@ -19,18 +19,22 @@ def exponents():
 
 @pytest.mark.crosscheck
 def test_the_rigid_model_gains_destabilise_the_rotor_modes(exponents):
-    """Fig. 6a: with the gains chosen on the rigid model the loop is unstable; the two arm-2
-    rotor modes grow at ≈ 0.5/s in the reference (the growth rate the case measures)."""
+    """Fig. 6a: with the gains chosen on the rigid model (K_d = 200 N·m·s/rad on the link-side
+    rates, sampled at 1 ms) two rotor modes near 140 Hz grow at ≈ 70–76/s and one at 158 Hz
+    at ≈ 20/s in the reference (measured at p1's start configuration)."""
     s = exponents["reference"]
-    assert len(s) == 6
-    assert np.sort(s.real)[-2:] == pytest.approx([0.50, 0.50], abs=0.02)
+    assert len(s) == 10
+    grow = np.sort(s.real)[-3:]
+    assert grow == pytest.approx([20.9, 69.8, 75.8], abs=1.0)
 
 
 @pytest.mark.crosscheck
 def test_engines_agree_on_the_closed_loop(exponents):
-    """Same six modes; σ within 0.01/s (measured 7.4e-3 with 2 reference modes and 8
-    elements: modal truncation), frequencies within 0.01 Hz."""
+    """Same ten modes in 60–200 Hz.  Measured with the case's 2 eigenmodes + 2 static shapes
+    per link against 8 elements: σ within 1.83/s and f within 1.29 Hz, both at the 158 Hz
+    mode (the reference's truncation: with 4 eigenmodes 0.17/s and 0.08 Hz); the tolerances
+    2.5/s and 1.5 Hz are the 2-mode values with a margin of 1.4 and 1.2."""
     ref, exu = exponents["reference"], exponents["exudyn"]
-    assert len(ref) == len(exu) == 6
-    assert np.max(np.abs(ref.real - exu.real)) < 0.01
-    assert np.max(np.abs(ref.imag - exu.imag)) / (2 * np.pi) < 0.01
+    assert len(ref) == len(exu) == 10
+    assert np.max(np.abs(ref.real - exu.real)) < 2.5
+    assert np.max(np.abs(ref.imag - exu.imag)) / (2 * np.pi) < 1.5

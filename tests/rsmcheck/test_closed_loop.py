@@ -46,7 +46,7 @@ def test_sampled_loop_on_a_first_order_plant():
 def test_controller_gains_follow_the_case():
     case = load_case("p1_rigid_gains")
     ky, kr, alpha = controller_gains(case, np.radians(case.initial.joint_angles_deg))
-    assert alpha == pytest.approx(1 - math.exp(-2 * math.pi * 30.0 * 1e-3))
+    assert alpha == 1.0  # eq. (14) as written: no filter on the joint rates
     assert np.allclose(np.diag(kr), [200, 200, 100, 200, 200, 100])
     assert (ky[6, I_BASE], ky[6, I_BASE + 1]) == (100.0, 1000.0)
 
