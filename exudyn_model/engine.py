@@ -402,6 +402,12 @@ class ExudynEngine:
         self.moment = self.mesh.moment_matrix()
         self.mass_ancf = self.mesh.mass_matrix()
         self.pos_mid = self.mesh.pos_matrix(0.5 * L)
+        self._rigid_gauss = links.gauss(8, -0.5 * L, 0.5 * L)  # a rigid link's field points
+        # ∫ρ r dξ of every link as one matrix on the stacked link coordinates
+        self._link_coords = np.concatenate([it.coords for it in self.links])
+        blocks = [np.hstack([self.params.link.mass * np.eye(2), np.zeros((2, 1))]) if it.rigid else self.first
+                  for it in self.links]
+        self._link_first = np.hstack(blocks)
         self.pos_tip = self.mesh.pos_matrix(L)
 
     def _settings(self) -> exu.SimulationSettings:
@@ -485,19 +491,12 @@ class ExudynEngine:
     def _mass_base(self) -> float:
         return self.params.base.mass - self.m_used
 
-    def _link_com_mass(self, it: LinkItems, q) -> np.ndarray:
-        """∫ρ r dξ of a link [kg·m]."""
-        qi = q[it.coords]
-        if it.rigid:
-            return self.params.link.mass * qi[:2]
-        return self.first @ qi
-
     def _com(self, q) -> tuple[np.ndarray, float]:
+        """System COM (relative to O) and mass: m_B r_B + m_T r_T + Σ ∫ρ r dξ over the links,
+        the link integrals as one matrix on all link coordinates (`_link_first`)."""
         p = self.params
         mB = self._mass_base()
-        s = mB * q[self.i_base[:2]] + p.target.mass * q[self.i_target[:2]]
-        for it in self.links:
-            s = s + self._link_com_mass(it, q)
+        s = mB * q[self.i_base[:2]] + p.target.mass * q[self.i_target[:2]] + self._link_first @ q[self._link_coords]
         m = mB + p.target.mass + 6 * p.link.mass
         return s / m, m
 
@@ -692,38 +691,39 @@ class ExudynEngine:
 
     def _tidal_forces(self, q) -> np.ndarray:
         """Generalised forces of the exact tidal field at the current positions (zero without
-        an orbit), carrier coordinates."""
+        an orbit), carrier coordinates.  One evaluation of the field for every point (base,
+        target, the Gauss points of all links), then distributed on each body's coordinates."""
         p = self.params
+        n_carrier = sum(3 if it.rigid else len(it.coords) for it in self.links) + 6
+        if not self.orbit:
+            return np.zeros(n_carrier)
         mu = p.orbit.mu
-        out = []
-        for m, pos in ((self._mass_base(), q[self.i_base[:2]]), (p.target.mass, q[self.i_target[:2]])):
-            g = fld.tidal(mu, self.r_O, pos) if self.orbit else np.zeros(2)
-            out.append(np.array([m * g[0], m * g[1], 0.0]))
+        xs_rigid, ws_rigid = self._rigid_gauss
+        _, ws_flex, D = self.mesh.sample(N_GAUSS_FIELD)
+        points = [q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :]]
         for it in self.links:
             qi = q[it.coords]
             if it.rigid:
-                out.append(np.zeros(3))
-                if self.orbit:
-                    L = p.link.length
-                    xs, ws = links.gauss(8, -0.5 * L, 0.5 * L)
-                    e = np.array([math.cos(qi[2]), math.sin(qi[2])])
-                    pts = qi[:2] + np.outer(xs, e)
-                    f = p.link.rho_a * ws[:, None] * fld.tidal(mu, self.r_O, pts)
-                    lever = pts - qi[:2]
-                    out[-1] = np.array([f[:, 0].sum(), f[:, 1].sum(),
-                                        np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])])
+                points.append(qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])]))
             else:
-                Q = np.zeros(len(qi))
-                if self.orbit:
-                    xs, ws, rs = self.mesh.points(qi, N_GAUSS_FIELD)
-                    Q = self._distributed(fld.tidal(mu, self.r_O, rs) * (p.link.rho_a * ws)[:, None])
-                out.append(Q)
+                points.append((D @ qi).reshape(-1, 2))
+        g = fld.tidal(mu, self.r_O, np.vstack(points))
+        out = [np.array([self._mass_base() * g[0, 0], self._mass_base() * g[0, 1], 0.0]),
+               np.array([p.target.mass * g[1, 0], p.target.mass * g[1, 1], 0.0])]
+        k = 2
+        for it, pts in zip(self.links, points[2:]):
+            n = pts.shape[0]
+            gi = g[k:k + n]
+            k += n
+            if it.rigid:
+                f = p.link.rho_a * ws_rigid[:, None] * gi
+                lever = pts - q[it.coords][:2]
+                out.append(np.array([f[:, 0].sum(), f[:, 1].sum(),
+                                     np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
+            else:
+                # Σ_g Sᵀ(ξ_g) f_g: point forces at the Gauss points on the link's coordinates
+                out.append(D.T @ (gi * (p.link.rho_a * ws_flex)[:, None]).reshape(-1))
         return np.concatenate(out)
-
-    def _distributed(self, f_points: np.ndarray) -> np.ndarray:
-        """Σ_g Sᵀ(ξ_g) f_g on a link's coordinates for point forces at the Gauss points of
-        `LinkMesh.points(·, N_GAUSS_FIELD)`."""
-        return self.mesh.sample(N_GAUSS_FIELD)[2].T @ f_points.reshape(-1)
 
     # ---- exact state for phase chaining (rsmcheck.chain) -------------------------------
     def export_state(self) -> dict:

@@ -268,6 +268,43 @@ def wrist_angles(q, qd, XT, XTd, th, om, m, basis):
     return psi, psid
 
 
+@njit(cache=True)
+def sensor_values(x, m, sw):
+    """What the sensors of the shared driver read, in one call (rsmcheck.engine.Sensors):
+    end effectors rE, ṙE (2×2), ψ_J, ψ̇_J (6), wrist angles ψ_w (2), system COM relative to
+    O (2) and the system mass.  COM: (m_B r_B + m_T r_T + Σ_i (m R_i + A(θ_i) S1_i)) / m_sys
+    with S1_i = (m L/2, φ̄·a_i)."""
+    nq = m.nq
+    ny = nq + 3
+    ns = ny + 6
+    sc = m.sc
+    q = x[0:nq]
+    XT = x[nq:ny]
+    qd = x[ns:ns + nq]
+    XTd = x[ns + nq:ns + ny]
+    kin = kinematics(q, qd, m, sw.basis)
+    th, om, R = kin[0], kin[1], kin[2]
+    psi, psid = joint_section_angles(q, qd, m, sw.basis)
+    psi_w, _ = wrist_angles(q, qd, XT, XTd, th, om, m, sw.basis)
+    mB = sc[S_MB0] - x[2 * ns + 4]
+    mL = sc[S_ML]
+    msys = mB + sc[S_MT] + N_LINKS * mL
+    com = np.zeros(2)
+    com[0] = mB * q[0] + sc[S_MT] * XT[0]
+    com[1] = mB * q[1] + sc[S_MT] * XT[1]
+    s1x = 0.5 * mL * sc[S_L]
+    for i in range(N_LINKS):
+        b = sw.basis[i]
+        s1y = 0.0
+        for a in range(m.nm[i]):
+            s1y += m.phi_bar[i, b, a] * q[m.mo[i] + a]
+        c = math.cos(th[i])
+        s = math.sin(th[i])
+        com[0] += mL * R[i, 0] + c * s1x - s * s1y
+        com[1] += mL * R[i, 1] + s * s1x + c * s1y
+    return kin[7], kin[8], psi, psid, psi_w, com / msys, msys
+
+
 # =====================================================================================
 # One link in Newtonian coordinates, eq. (A.3)
 # =====================================================================================

@@ -10,7 +10,7 @@ from cases.loader import Case
 from reference_model import core, switching
 from reference_model.implicit import integrate_trbdf2
 from reference_model.model import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, terminal_basis
-from reference_model.observe import observe, system_com, wrist_angles
+from reference_model.observe import observe
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.errors import SimulationDiverged
 from rsmcheck.initial import InitialConfiguration, build_initial
@@ -112,22 +112,18 @@ class ReferenceEngine:
         lay = self.model.layout
         x = self.x
         q, qd = x[lay.q], x[lay.qd]
-        kin = self.model.kinematics(q, qd, self.cfg)
-        rE, rEd = kin[7], kin[8]
-        com, m = system_com(self.model, x, self.cfg)
-        psi, psid = self.model.joint_section_angles(q, qd, self.cfg)
+        rE, rEd, psi, psid, psi_w, com, m = core.sensor_values(x, *self.model.core_args(self.cfg))
         c, s = math.cos(q[2]), math.sin(q[2])
         d = com - q[0:2]
         return Sensors(
             time=self.t, base_pose_I=q[0:3].copy(), base_rate_I=qd[0:3].copy(),
             joint_angles=psi, joint_rates=psid, joint_frame_angles=q[3:9].copy(),
-            joint_frame_rates=qd[3:9].copy(),
-            wrist_angles=wrist_angles(self.model, x, self.cfg)[0],
+            joint_frame_rates=qd[3:9].copy(), wrist_angles=psi_w,
             motor_angles=x[lay.motors].copy(), motor_rates=x[lay.motors_d].copy(),
             ee_pos_I=rE.copy(), ee_vel_I=rEd.copy(),
             target_pose_I=x[lay.target].copy(), target_rate_I=x[lay.target_d].copy(),
             com_pos_B=np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]),
-            grasp_state=self.cfg.grasp_on.copy(), system_mass=m,
+            grasp_state=self.cfg.grasp_on.copy(), system_mass=float(m),
             orbit_r_I=x[lay.r_O].copy(), orbit_v_I=x[lay.v_O].copy())
 
     def observe(self, inputs: Inputs) -> dict:

@@ -69,31 +69,33 @@ class ArmModel:
         self.mount = np.asarray(params.geometry.mount_B(arm), float)
         self.length = params.link.length
 
-    def pins(self, q) -> np.ndarray:
-        """The four pins (mount, elbows, end effector), base frame, rows."""
-        out = np.empty((4, 2))
-        p = self.mount.copy()
+    def _pins(self, q) -> list[tuple[float, float]]:
+        """The four pins as (x, y) floats (plain arithmetic: called every control sample)."""
+        x, y = float(self.mount[0]), float(self.mount[1])
         th = 0.0
-        out[0] = p
+        out = [(x, y)]
         for s in range(3):
-            th += q[s]
-            p = p + self.length * np.array([math.cos(th), math.sin(th)])
-            out[s + 1] = p
+            th += float(q[s])
+            x += self.length * math.cos(th)
+            y += self.length * math.sin(th)
+            out.append((x, y))
         return out
 
+    def pins(self, q) -> np.ndarray:
+        """The four pins (mount, elbows, end effector), base frame, rows."""
+        return np.array(self._pins(q))
+
     def pose(self, q) -> np.ndarray:
-        pins = self.pins(q)
-        return np.array([pins[3, 0], pins[3, 1], q[0] + q[1] + q[2]])
+        x, y = self._pins(q)[3]
+        return np.array([x, y, float(q[0]) + float(q[1]) + float(q[2])])
 
     def jacobian(self, q) -> np.ndarray:
-        pins = self.pins(q)
-        e = pins[3]
-        jac = np.ones((3, 3))
-        for s in range(3):
-            d = e - pins[s]
-            jac[0, s] = -d[1]
-            jac[1, s] = d[0]
-        return jac
+        """Column s: ∂(x, y, φ)/∂θ_Js = (−(e − p_s)_y, (e − p_s)_x, 1), e the end effector."""
+        pins = self._pins(q)
+        ex, ey = pins[3]
+        return np.array([[-(ey - pins[0][1]), -(ey - pins[1][1]), -(ey - pins[2][1])],
+                         [ex - pins[0][0], ex - pins[1][0], ex - pins[2][0]],
+                         [1.0, 1.0, 1.0]])
 
     def inverse(self, goal, guess, tol: float = 1e-12, iterations: int = 100) -> np.ndarray:
         """Joint angles reaching pose `goal` = (x, y, φ) (Newton from `guess`)."""

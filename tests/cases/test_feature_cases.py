@@ -18,9 +18,21 @@ FEATURES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", "capt
             "wrist_bistop", "gravity_gradient", "thrust_burn")
 
 
+#: every feature case's short reference run, from the session's run pool (tests/conftest.py:
+#: the same runs the cross-check and the gate read)
+pytestmark = pytest.mark.engine_runs(*[(n, "reference", True, ()) for n in FEATURES])
+
+
+@pytest.fixture
+def short_run(run_pool):
+    """(case variant, EngineRun) of the --short variant, reference engine."""
+    return lambda name: (load_case(name).variant(True), run_pool.get(name, "reference"))
+
+
 @functools.lru_cache(maxsize=None)
-def short_run(name: str):
-    """(case variant, EngineRun, engine at the end) of the --short variant."""
+def engine_run(name: str):
+    """(case variant, EngineRun, engine at the end, sensors at the start): for the tests that
+    need the engine's state beyond the observables (the orbit of thrust_burn)."""
     case = load_case(name).variant(True)
     engine = ReferenceEngine(case)
     s0 = engine.sensors()
@@ -50,14 +62,14 @@ def test_new_feature_cases_name_observables_to_compare(name):
         assert c.tolerance > 0 and c.why.strip().endswith(".")
 
 
-def test_free_drift_conserves_momentum():
-    _, r, _, _ = short_run("free_drift")
+def test_free_drift_conserves_momentum(short_run):
+    _, r = short_run("free_drift")
     p = r.observables["momentum_I"]
     assert np.max(np.abs(p - p[0])) < 1e-6 * max(1.0, np.max(np.abs(p)))
 
 
-def test_flex_arm_step_bends_the_links_and_conserves_momentum():
-    _, r, _, _ = short_run("flex_arm_step")
+def test_flex_arm_step_bends_the_links_and_conserves_momentum(short_run):
+    _, r = short_run("flex_arm_step")
     o = r.observables
     assert np.all(o["motor_torques"][:, 3] == 10.0)
     defl = o["link_deflection"][:, 3:6]  # arm 2
@@ -70,8 +82,17 @@ def test_flex_arm_step_bends_the_links_and_conserves_momentum():
     assert abs(o["joint_angles"][-1, 3] - o["joint_angles"][0, 3]) > 0.01
 
 
-def test_motor_step_rings_at_the_rotor_frequency():
-    case, r, _, _ = short_run("motor_step")
+@pytest.mark.crosscheck
+def test_motor_step_rings_at_the_rotor_frequency(short_run):
+    """The elbow twist rings at a rotor mode of the arm: below √(K_m/B_m)/2π = 91.9 Hz (the
+    rigid-link value: the links' end sections yield in series with the joint spring), at the
+    frequency Exudyn's linearised model of the same configuration has there (measured 75.63 Hz
+    from the zero crossings against Exudyn's 75.65 Hz), and decays at the rate the links'
+    share of its strain energy gives."""
+    from exudyn_model.modes import coupled_frequencies
+    from rsmcheck.modes import modal_case
+
+    case, r = short_run("motor_step")
     o = r.observables
     t = o["time"]
     twist = o["motor_angles"][:, 1] - o["joint_angles"][:, 1]
@@ -80,26 +101,38 @@ def test_motor_step_rings_at_the_rotor_frequency():
     up = np.where(np.diff(np.sign(x)) > 0)[0]
     f = (len(up) - 1) / (t[after][up[-1]] - t[after][up[0]])
     m = case.params.motor
-    f_rotor = math.sqrt(m.stiffness / m.inertia) / (2 * math.pi)  # 91.9 Hz, link side ≫ B_m
-    assert abs(f - f_rotor) < 2.0
+    assert f < math.sqrt(m.stiffness / m.inertia) / (2 * math.pi) - 5.0
+    exudyn_hz = coupled_frequencies(modal_case(load_case("motor_step")), 20)
+    assert np.min(np.abs(exudyn_hz - f)) < 0.2, (f, exudyn_hz)
     assert 1e-4 < np.max(np.abs(x)) < 1e-2
-    # barely damped (C_m = 0.002): the amplitude of the last 0.2 s is > 80 % of the first 0.2 s
-    first = np.max(np.abs(x[t[after] < 0.35]))
-    last = np.max(np.abs(x[t[after] > t[-1] - 0.2]))
-    assert last > 0.8 * first
+    # damped by the links: the ring bends them through their end sections, so part of its
+    # strain energy, 1 − (f/f₀)² for the joint spring in series with the links' end
+    # compliance (32 %), sits in Kelvin–Voigt links and decays at η ω²/2 per unit share;
+    # C_m adds C_m/(2 B_m) = 0.008/s.  Predicted σ ≈ 3.9/s, measured 5.0/s from the
+    # envelope per period (the estimate ignores the other rotor modes it beats with).
+    T = 1.0 / f
+    ta = t[after]
+    starts = np.arange(ta[0], ta[-1] - T, T)
+    envelope = np.array([np.max(np.abs(x[(ta >= a) & (ta < a + T)])) for a in starts])
+    sigma = -np.polyfit(starts, np.log(envelope), 1)[0]
+    link = case.params.link
+    eta = 2 * link.damping_ratio / (2 * math.pi * link.f1_pp_hz)
+    f0 = math.sqrt(m.stiffness / m.inertia) / (2 * math.pi)
+    predicted = (1 - (f / f0) ** 2) * eta * (2 * math.pi * f) ** 2 / 2 + m.damping / (2 * m.inertia)
+    assert 0.67 * predicted < sigma < 1.5 * predicted, (sigma, predicted)
     assert [e.detail for e in events(r, "segment")] == ["pulse", "ring"]
 
 
-def test_closed_squeeze_holds_the_constraint():
-    _, r, _, _ = short_run("closed_squeeze")
+def test_closed_squeeze_holds_the_constraint(short_run):
+    _, r = short_run("closed_squeeze")
     o = r.observables
     assert np.max(np.abs(o["constraint_residual"])) < 1e-6
     assert np.max(np.abs(o["reaction_forces_I"][-1])) > 1.0
     assert np.all(o["grasp_state"] == 1.0)
 
 
-def test_capture_closes_the_grasp_by_the_if_conditions():
-    case, r, engine, _ = short_run("capture")
+def test_capture_closes_the_grasp_by_the_if_conditions(short_run):
+    case, r = short_run("capture")
     caps = events(r, "capture")
     assert len(caps) == 1
     detail = dict(kv.split("=") for kv in caps[0].detail.split())
@@ -114,11 +147,11 @@ def test_capture_closes_the_grasp_by_the_if_conditions():
     i = np.searchsorted(o["time"], caps[0].time)
     assert np.all(o["grasp_state"][:i, 1] == 0) and np.all(o["grasp_state"][i + 1:, 1] == 1)
     assert np.max(np.abs(o["constraint_residual"][-1])) < 1e-4
-    assert engine.sensors().grasp_state.tolist() == [1, 1]
+    assert o["grasp_state"][-1].tolist() == [1, 1]
 
 
-def test_release_opens_the_chain_without_a_jump():
-    _, r, _, _ = short_run("release")
+def test_release_opens_the_chain_without_a_jump(short_run):
+    _, r = short_run("release")
     rel = events(r, "release")
     assert len(rel) == 1 and rel[0].time == pytest.approx(1.0)
     o = r.observables
@@ -136,8 +169,8 @@ def test_release_opens_the_chain_without_a_jump():
     assert np.linalg.norm(o["ee2_pos_B"][-1] - o["ee2_pos_B"][0]) > 0.01
 
 
-def test_wrist_bistop_stops_the_target_and_sends_it_back():
-    case, r, _, _ = short_run("wrist_bistop")
+def test_wrist_bistop_stops_the_target_and_sends_it_back(short_run):
+    case, r = short_run("wrist_bistop")
     lim = case.params.wrist.limit
     contact = events(r, "bistop_contact")
     free = events(r, "bistop_free")
@@ -147,15 +180,19 @@ def test_wrist_bistop_stops_the_target_and_sends_it_back():
     assert psi[0] < lim and np.max(psi) > lim
     assert np.max(psi) < lim + 0.1  # the stop holds
     assert psi[-1] < lim  # ... and the target comes back off it
-    # the target's inertial attitude (Fig. 9) turns while free and reverses at the stop
-    th = o["target_attitude"]
+    # the target's attitude (Fig. 9) turns while free and reverses at the stop.  Relative to
+    # the base: the stop's impulse also turns the whole robot (the base attitude control,
+    # k_p = 100 N·m/rad, gives way by 0.06 rad in the short run), so the inertial attitude
+    # target_attitude goes on growing, by 0.06 rad less than it would
+    th = o["target_pose_B"][:, 2]
     i = int(np.searchsorted(o["time"], contact[0].time))
     assert np.all(np.diff(th[:i]) > 0)
     assert np.min(np.diff(th[i:])) < 0
+    assert th[-1] < th[i]
 
 
-def test_gravity_gradient_torque_matches_the_tidal_law():
-    case, r, _, _ = short_run("gravity_gradient")
+def test_gravity_gradient_torque_matches_the_tidal_law(short_run):
+    case, r = short_run("gravity_gradient")
     o = r.observables
     p = case.params
     mu, re = p.orbit.mu, p.orbit.earth_radius
@@ -195,7 +232,7 @@ def test_gravity_gradient_torque_matches_the_tidal_law():
 
 
 def test_thrust_burn_depletes_mass_loads_the_arms_and_changes_the_orbit():
-    case, r, engine, s0 = short_run("thrust_burn")
+    case, r, engine, s0 = engine_run("thrust_burn")
     p = case.params
     o = r.observables
     t = o["time"]
@@ -205,8 +242,10 @@ def test_thrust_burn_depletes_mass_loads_the_arms_and_changes_the_orbit():
     m0 = o["system_mass"][0]
     expected = np.where(t < burn, m0 - mdot * t, m0 - mdot * burn)
     assert np.max(np.abs(o["system_mass"] - expected)) < 1e-9 * m0
-    # Fig. 14: the motors saturate in the transient after ignition; Fig. 15: bounded bending
-    assert np.max(np.abs(o["motor_torques"][t < burn])) == pytest.approx(p.motor.torque_max)
+    # Fig. 14: the motors take the ignition transient (the paper's saturate; with the
+    # flexibility-aware gains the peak is 62 N·m of the 80 N·m limit, docs/cases.md §5);
+    # Fig. 15: bounded bending
+    assert 0.5 * p.motor.torque_max < np.max(np.abs(o["motor_torques"][t < burn])) <= p.motor.torque_max
     assert np.max(np.abs(o["link_deflection"])) < 1e-3
     # Fig. 13: the configuration yields by a few degrees, no more
     assert np.max(np.abs(o["joint_angles"] - o["joint_angles"][0])) < math.radians(10)

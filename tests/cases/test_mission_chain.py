@@ -88,7 +88,8 @@ def test_end_state_file(chain_dir):
     st = doc["engines"]["reference"]
     assert st["rigid"]["grasp"] == [1, 1]
     assert st["rigid"]["t_end"] == pytest.approx(0.3)
-    assert len(st["exact"]["x"]) > 40 and st["exact"]["n_modes"] == [2] * 6
+    # the exact state: 2 eigenmodes + 2 static correction shapes per link
+    assert len(st["exact"]["x"]) > 40 and st["exact"]["n_modes"] == [4] * 6
     with pytest.raises(InputError, match="full"):
         load_end_state(path, "reference", short=True, where="x")
     with pytest.raises(InputError, match="no end state of engine 'exudyn'"):
@@ -124,15 +125,19 @@ def test_rigid_part_is_what_other_engines_start_from(chain_dir):
     case = chained(load_case(d / "b.toml"), st)
     init = build_initial(case)
     rigid = st["rigid"]
-    assert init.joint_angles == pytest.approx(rigid["joint_angles"], abs=0)
-    assert init.motor_angles == pytest.approx(rigid["motor_angles"], abs=0)
+    # undeformed links placed by the frame angles; each spring keeps its twist θ_m − ψ_J
+    assert init.joint_angles == pytest.approx(rigid["joint_frame_angles"], abs=0)
+    twist = np.asarray(rigid["motor_angles"]) - np.asarray(rigid["joint_angles"])
+    assert init.motor_angles - init.joint_angles == pytest.approx(twist, abs=1e-15)
+    assert np.max(np.abs(np.asarray(rigid["joint_angles"]) - rigid["joint_frame_angles"])) > 1e-7  # bent links
     assert init.rho_G == pytest.approx(np.array(rigid["held_points"]), abs=0)
     assert init.m_used == pytest.approx(rigid["m_used"])
     assert np.linalg.norm(init.orbit_r) == pytest.approx(6378137.0 + 700e3)
     # the exact reference restore and the rigid start agree on the rigid coordinates
     engine = make_engine("reference", case)
     s = engine.sensors()
-    assert s.joint_angles == pytest.approx(init.joint_angles, abs=1e-12)
+    assert s.joint_frame_angles == pytest.approx(init.joint_angles, abs=1e-12)
+    assert s.joint_angles == pytest.approx(rigid["joint_angles"], abs=1e-12)  # the bent links restored
     assert s.base_pose_I == pytest.approx(init.base_pose, abs=1e-12)
     assert s.orbit_r_I == pytest.approx(init.orbit_r, abs=1e-6)
 

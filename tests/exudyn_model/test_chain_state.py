@@ -42,7 +42,10 @@ def test_import_continues_the_deformed_state():
         assert np.allclose(a[name], b[name], rtol=1e-12, atol=1e-12), name
 
 
-def test_rigid_start_takes_motor_angles_and_propellant():
+def test_rigid_start_takes_spring_twists_and_propellant():
+    """From the rigid part alone the links start undeformed at the frame angles θ_J and each
+    joint spring keeps its twist θ_m − ψ_J (and its rate), so the joints carry on with their
+    torques (rsmcheck.initial: the rotors are shifted by the bend θ_J − ψ_J)."""
     def drop_exact(state):
         state["exact"] = None
         state["rigid"]["m_used"] = 2.5
@@ -50,8 +53,11 @@ def test_rigid_start_takes_motor_angles_and_propellant():
     first, second = _continued("closed_squeeze", 0.05, drop_exact)
     s1, s2 = first.sensors(), second.sensors()
     assert second.solver_settings()["start"] == "rigid end state"
-    assert np.allclose(s2.motor_angles, s1.motor_angles, atol=1e-14)
-    assert np.allclose(s2.motor_rates, s1.motor_rates, atol=1e-14)
+    assert np.allclose(s2.joint_frame_angles, s1.joint_frame_angles, atol=1e-12)
+    assert np.allclose(s2.joint_angles, s2.joint_frame_angles, atol=1e-12)  # undeformed
+    assert np.allclose(s2.motor_angles - s2.joint_angles, s1.motor_angles - s1.joint_angles, atol=1e-13)
+    assert np.allclose(s2.motor_rates - s2.joint_rates, s1.motor_rates - s1.joint_rates, atol=1e-12)
+    assert np.max(np.abs(s1.joint_angles - s1.joint_frame_angles)) > 1e-7  # the bend was real
     assert second.m_used == 2.5
     assert s2.system_mass == pytest.approx(s1.system_mass - 2.5, abs=1e-12)
 

@@ -10,7 +10,7 @@
 * Momentum: free floating (no orbit, no base torque), internal motor torques only
   (controller "constant"): linear and angular momentum (`momentum_I`) change by ≤ 1e-9 of
   their magnitude at t = 0, |p(0)| and |L(0)| (the initial rates give both a clear value).
-* Baumgarte (eq. 12): closed_squeeze with its torques for 60 s keeps the constraint
+* Baumgarte (eq. 12): closed_squeeze with its torques for 20 s keeps the constraint
   residual φ_T of eq. (8) ≤ 1e-8 m.
 """
 
@@ -160,9 +160,10 @@ def test_momentum_conserved_free_floating_motor_torques(make_case, grasp, target
 
 
 @pytest.mark.slow
-def test_baumgarte_keeps_closed_squeeze_on_the_constraint_60s():
+def test_baumgarte_keeps_closed_squeeze_on_the_constraint_20s():
     """closed_squeeze as shipped (its constant torques, its damping, its solver settings),
-    integrated for 60 s with the torques held; φ_T sampled every 20 ms."""
+    integrated for 20 s (200 periods of the Baumgarte time constant 0.1 s) with the torques
+    held; φ_T sampled every 20 ms."""
     case = load_case("closed_squeeze")
     assert list(case.initial.grasp) == [1, 1]
     assert case.controller.kind == "constant"  # constant torques: holding them is exact
@@ -172,17 +173,17 @@ def test_baumgarte_keeps_closed_squeeze_on_the_constraint_60s():
     u = Inputs(tau_m=tau, tau_B=case.controller.base_torque)
     dt = 0.02
     residual, reactions = [], []
-    for k in range(int(round(60.0 / dt)) + 1):
+    for k in range(int(round(20.0 / dt)) + 1):
         if k:
             engine.advance(k * dt, u)
         o = engine.observe(u)
         residual.append(o["constraint_residual"])
         reactions.append(o["reaction_forces_I"])
-    assert engine.time() == pytest.approx(60.0)
+    assert engine.time() == pytest.approx(20.0)
     res = np.abs(residual).max()
     # the chain is loaded: reaction forces of eq. (11) are not small
     r_max = np.abs(reactions).max()
-    print(f"\nclosed_squeeze 60 s: max |φ_T| = {res:.2e} m, max |R_cl| = {r_max:.3g} N, "
+    print(f"\nclosed_squeeze 20 s: max |φ_T| = {res:.2e} m, max |R_cl| = {r_max:.3g} N, "
           f"{engine.steps} steps")
     assert r_max > 1.0
     assert res <= RESIDUAL_TOL_M
