@@ -200,8 +200,79 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return main(args.rest)
 
 
+def _gate_cases(names: Sequence[str] | None) -> list:
+    from cases.loader import load_case
+    from rsmcheck.gate import gated_cases
+
+    if not names or list(names) == ["all"]:
+        return gated_cases()
+    cases = [load_case(n) for n in names]  # validate every case before running any
+    for c in cases:
+        if c.phases or not c.variant(True).has_initial:
+            raise InputError(str(c.path), "initial", "only stand-alone cases have goldens "
+                             "(a sequence is gated phase by phase)")
+    return cases
+
+
+def _progress(text: str) -> None:
+    sys.stderr.write(f"  {text}\n")
+    sys.stderr.flush()
+
+
+def _cmd_gate(args: argparse.Namespace) -> int:
+    import json
+
+    from rsmcheck.gate import gate, tolerance_table
+
+    cases = _gate_cases(args.case)
+    if args.tolerances:
+        rows = tolerance_table(cases, _engine_names(args.engine), Path(args.goldens))
+        if args.json:
+            print(json.dumps({"tolerances": rows}, indent=1))
+            return 0
+        print(f"{'case':20s} {'engine':9s} {'observable':20s} {'gate tol':>10s} {'measured':>10s} {'|value|max':>10s}")
+        for r in rows:
+            print(f"{r['case']:20s} {r['engine']:9s} {r['observable']:20s} {r['tolerance']:10.2e} "
+                  f"{r['perturbation_change']:10.2e} {r['largest_value']:10.2e}")
+        return 0
+    results = gate(cases, _engine_names(args.engine), Path(args.goldens), None if args.json else _progress)
+    if args.json:
+        print(json.dumps({"gate": [r.as_dict() for r in results]}, indent=1))
+    else:
+        for r in results:
+            head = f"{r.case} / {r.engine}: "
+            if r.unchanged:
+                print(head + f"unchanged (largest change {r.largest_ratio:.2g} × its gate tolerance)")
+                continue
+            print(head + ("INPUTS CHANGED" if r.inputs_changed else "MOVED"))
+            for line in r.inputs_changed + r.structure:
+                print(f"    {line}")
+            for m in r.moved:
+                print(f"    {m.observable:20s} changed by {m.change:.3e} > gate tolerance {m.tolerance:.3e} "
+                      f"({m.ratio:.3g} ×), first at t = {m.first_time:.4g} s, worst component {m.component}")
+        moved = sum(not r.unchanged for r in results)
+        print(f"{len(results) - moved} of {len(results)} runs unchanged"
+              + (f"; {moved} moved: if the change is intended, rsmcheck bless CASE --reason TEXT" if moved else ""))
+    return 0 if all(r.unchanged for r in results) else 1
+
+
+def _cmd_bless(args: argparse.Namespace) -> int:
+    from rsmcheck.gate import CHANGELOG, bless
+
+    if not args.reason or not args.reason.strip():
+        raise InputError("bless", "--reason", "a bless needs a reason: what changed and why the new results are right")
+    cases = _gate_cases(args.case)
+    entries = bless(cases, _engine_names(args.engine), args.reason, Path(args.goldens), _progress)
+    for case, engine, what in entries:
+        print(f"{case} / {engine}: " + "; ".join(what))
+    print(f"wrote {len(entries)} golden(s) and an entry in {Path(args.goldens) / CHANGELOG}")
+    return 0
+
+
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "bench": _cmd_bench,
+    "bless": _cmd_bless,
+    "gate": _cmd_gate,
     "cases": _cmd_cases,
     "check": _cmd_check,
     "modes": _cmd_modes,
@@ -243,6 +314,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
     p.add_argument("--short", action="store_true", help="the compressed variant of each case")
     p.add_argument("--cases", nargs="+", metavar="CASE", help="only these cases (default: all)")
+    from rsmcheck.gate import GOLDEN_DIR
+
+    p = sub.add_parser("gate", help="run the cases' short variants and compare each engine with its golden")
+    p.add_argument("case", nargs="*", help="case names (default: every stand-alone case)")
+    p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
+    p.add_argument("--json", action="store_true", help="one JSON object {\"gate\": [...]} on stdout")
+    p.add_argument("--tolerances", action="store_true",
+                   help="print the goldens' gate tolerances and what they were measured from; run nothing")
+    p.add_argument("--goldens", default=str(GOLDEN_DIR), help=argparse.SUPPRESS)
+    p = sub.add_parser("bless", help="re-run cases and rewrite their goldens (with --reason, into the changelog)")
+    p.add_argument("case", nargs="+", help="case names, or 'all'")
+    p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
+    p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
+    p.add_argument("--goldens", default=str(GOLDEN_DIR), help=argparse.SUPPRESS)
     sub.add_parser("bench", help="speed of each engine on the same work [--json] [--full]", add_help=False)
     p = sub.add_parser("pinocchio", help="rigid checks of the reference against Pinocchio", add_help=False)
     p.add_argument("rest", nargs=argparse.REMAINDER)

@@ -58,3 +58,6 @@ def exit_code(prog: str, action: Callable[[], int]) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{prog}: interrupted\n")
         return 130
+    except BrokenPipeError:  # the reader went away (`rsmcheck … | head`): not an error of ours
+        sys.stderr.close()
+        return 0

@@ -129,8 +129,8 @@ def test_failure_mid_write_leaves_no_file(tmp_path, monkeypatch, exc):
     calls = []
     real = store._write_group
 
-    def failing(f, name, run):
-        real(f, name, run)  # the first group really lands in the temporary file
+    def failing(f, name, run, compress=False):
+        real(f, name, run, compress)  # the first group really lands in the temporary file
         calls.append(name)
         assert (tmp_path / "x.h5.tmp").exists()
         if len(calls) == 2:
@@ -148,7 +148,7 @@ def test_failure_mid_write_keeps_previous_file(tmp_path, monkeypatch):
     path = write(tmp_path / "x.h5", {"reference": make_run("reference", seed=5)})
     old = path.read_bytes()
 
-    def failing(f, name, run):
+    def failing(f, name, run, compress=False):
         raise OSError("simulated write error")
 
     monkeypatch.setattr(store, "_write_group", failing)

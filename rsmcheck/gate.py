@@ -1,0 +1,385 @@
+"""Regression gate: every case's short variant, per engine, against a stored golden run.
+
+The engine-vs-engine check cannot see a change that moves both engines together (a
+parameter, a controller, a case file, the initial-state solver), and its tolerances are
+set by the engines' modelling differences.  The gate compares each engine with *itself*
+as it was when the golden was blessed, at the level of reproducibility (docs/gate.md):
+
+* A golden (`goldens/CASE.ENGINE.h5`) is an ordinary run file (rsmcheck.store) holding
+  every observable at at most `MAX_SAMPLES` evenly strided samples of the short run, all
+  events and phases, and as root attributes its provenance (case-file hash, parameter
+  hash, commit, package versions, platform, when and why it was blessed) and its gate
+  tolerance per observable (`gate_tol.NAME`).
+* The gate tolerance is *measured* at bless time: the case is run a second time with every
+  mass of the parameter set scaled by (1 + `PERTURBATION`), a change 10⁴ times double
+  round-off that stands in for another machine or library build (different operation
+  order, FMA contraction); the tolerance is `TOL_FACTOR` times the largest change this
+  causes in the observable, and at least `REL_FLOOR` times its largest magnitude.
+* A run moved when any observable differs from the golden by more than its gate tolerance
+  at any stored sample, when the events or phases differ, or when its time grid differs.
+  A changed case file or parameter set is reported as such (the run then has no golden to
+  be compared with, and is "inputs changed", exit 1 until blessed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import os
+import platform
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from rsmcheck.errors import InputError
+from rsmcheck.observables import NAMES
+from rsmcheck.store import EngineRun, git_commit, read_run, write_run
+
+ROOT = Path(__file__).resolve().parent.parent
+GOLDEN_DIR = ROOT / "goldens"
+CHANGELOG = "CHANGELOG.md"
+GOLDEN_SCHEMA = 1
+#: samples kept per golden run (evenly strided, the last one always kept)
+MAX_SAMPLES = 100
+#: relative change of every mass used to measure reproducibility at bless time
+PERTURBATION = 1e-12
+#: gate tolerance = TOL_FACTOR × the change the perturbation causes ...
+TOL_FACTOR = 10.0
+#: ... and at least REL_FLOOR × the observable's largest magnitude (+ ABS_FLOOR)
+REL_FLOOR = 1e-10
+ABS_FLOOR = 1e-14
+#: two events are the same when kind and detail agree and times within this [s]
+EVENT_TIME_TOL = 1e-9
+_TOL = "gate_tol."
+_DELTA = "gate_delta."
+
+
+@dataclass
+class Golden:
+    """A golden run as read back: the decimated run, where its samples were, provenance."""
+
+    path: Path
+    run: EngineRun
+    index: np.ndarray  # sample indices of the full run that were kept
+    n_full: int
+    tolerances: dict[str, float]
+    attrs: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Moved:
+    """One observable of one run that left its gate tolerance."""
+
+    observable: str
+    change: float  # largest |new − golden| over the stored samples and components
+    tolerance: float
+    first_time: float  # first stored sample at which the tolerance is exceeded [s]
+    component: int
+
+    @property
+    def ratio(self) -> float:
+        return self.change / self.tolerance if self.tolerance > 0 else float("inf")
+
+
+@dataclass
+class GateResult:
+    """The gate's verdict on one (case, engine)."""
+
+    case: str
+    engine: str
+    inputs_changed: list[str] = field(default_factory=list)  # case file / parameters
+    moved: list[Moved] = field(default_factory=list)
+    structure: list[str] = field(default_factory=list)  # time grid, events, phases
+    largest_ratio: float = 0.0  # max change / tolerance over all observables
+
+    @property
+    def unchanged(self) -> bool:
+        return not (self.inputs_changed or self.moved or self.structure)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"case": self.case, "engine": self.engine, "unchanged": self.unchanged,
+                "inputs_changed": self.inputs_changed, "structure": self.structure,
+                "largest_ratio": self.largest_ratio,
+                "moved": [dataclasses.asdict(m) for m in self.moved]}
+
+
+# ---------------------------------------------------------------------------------------
+# golden files
+# ---------------------------------------------------------------------------------------
+def golden_path(case_name: str, engine: str, root: Path = GOLDEN_DIR) -> Path:
+    return Path(root) / f"{case_name}.{engine}.h5"
+
+
+def kept_samples(n_full: int, max_samples: int = MAX_SAMPLES) -> np.ndarray:
+    """Indices kept in a golden: every `stride`-th sample and the last one."""
+    if n_full < 1:
+        raise ValueError("a run needs at least one sample")
+    stride = max(1, -(-n_full // max_samples))
+    idx = np.arange(0, n_full, stride)
+    if idx[-1] != n_full - 1:
+        idx = np.append(idx, n_full - 1)
+    return idx
+
+
+def scales(run: EngineRun) -> dict[str, float]:
+    """Largest finite magnitude of each observable (the size a relative floor refers to)."""
+    out = {}
+    for name in NAMES:
+        x = np.asarray(run.observables[name], float)
+        fin = x[np.isfinite(x)]
+        out[name] = float(np.max(np.abs(fin))) if fin.size else 0.0
+    return out
+
+
+def differences(run: EngineRun, golden_run: EngineRun, index: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per observable: (|new − golden| at the stored samples, per sample and component
+    flattened to (samples, components)); a NaN on one side only is an infinite change."""
+    out = {}
+    for name in NAMES:
+        a = np.asarray(run.observables[name], float)[index].reshape(len(index), -1)
+        b = np.asarray(golden_run.observables[name], float).reshape(len(index), -1)
+        d = np.abs(a - b)
+        both_nan = np.isnan(a) & np.isnan(b)
+        d[both_nan] = 0.0
+        d[np.isnan(d)] = np.inf
+        out[name] = (d, np.asarray(golden_run.observables["time"], float))
+    return out
+
+
+def measured_tolerances(nominal: EngineRun, perturbed: EngineRun) -> tuple[dict[str, float], dict[str, float]]:
+    """(gate tolerance, measured change) per observable from a nominal and a perturbed run."""
+    if len(nominal.observables["time"]) != len(perturbed.observables["time"]):
+        raise RuntimeError("the perturbed run has another time grid than the nominal one: "
+                           "the case is not reproducible at round-off level (an event moved by a sample)")
+    idx = np.arange(len(nominal.observables["time"]))
+    diffs = differences(perturbed, nominal, idx)
+    size = scales(nominal)
+    tol, delta = {}, {}
+    for name in NAMES:
+        d = diffs[name][0]
+        delta[name] = float(np.max(d)) if d.size else 0.0
+        if not np.isfinite(delta[name]):
+            raise RuntimeError(f"{name}: the perturbed run is NaN where the nominal one is not")
+        tol[name] = max(TOL_FACTOR * delta[name], REL_FLOOR * size[name] + ABS_FLOOR)
+    return tol, delta
+
+
+def write_golden(path: Path, case, run: EngineRun, tolerances: dict[str, float], deltas: dict[str, float],
+                 reason: str) -> Path:
+    """Write the decimated `run` of the short variant of `case` with its provenance."""
+    n_full = len(run.observables["time"])
+    idx = kept_samples(n_full)
+    small = dataclasses.replace(run, observables={k: np.asarray(v)[idx] for k, v in run.observables.items()})
+    extra: dict[str, Any] = {
+        "golden_schema": GOLDEN_SCHEMA, "short": True, "n_full": n_full, "max_samples": MAX_SAMPLES,
+        "reason": reason, "blessed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "platform": platform.platform(), "machine": platform.machine(),
+        "perturbation": PERTURBATION, "tol_factor": TOL_FACTOR, "rel_floor": REL_FLOOR,
+    }
+    extra.update({_TOL + k: float(v) for k, v in tolerances.items()})
+    extra.update({_DELTA + k: float(v) for k, v in deltas.items()})
+    return write_run(path, {run.engine: small}, case_name=case.name, case_hash=case.file_hash,
+                     param_hash=case.params.digest(), extra_attrs=extra, compress=True)
+
+
+def read_golden(path: Path, engine: str) -> Golden:
+    """Read a golden; a missing, corrupt or foreign file is an InputError (exit 2)."""
+    where = str(path)
+    if not Path(path).exists():
+        raise InputError(where, "file", "no golden for this case and engine: bless it first "
+                                        "(rsmcheck bless CASE --reason TEXT)")
+    try:
+        runs, attrs = read_run(path)
+    except FileNotFoundError:
+        raise InputError(where, "file", "no such golden") from None
+    if attrs.get("golden_schema") != GOLDEN_SCHEMA:
+        raise InputError(where, "golden_schema", f"{attrs.get('golden_schema')!r} is not a golden of schema "
+                                                 f"{GOLDEN_SCHEMA}: re-bless it")
+    if engine not in runs:
+        raise InputError(where, engine, f"the golden holds {', '.join(runs)}, not {engine}")
+    try:
+        n_full = int(attrs["n_full"])
+        tol = {name: float(attrs[_TOL + name]) for name in NAMES}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(where, "attributes", f"missing or malformed gate attribute ({exc})") from None
+    idx = kept_samples(n_full, int(attrs.get("max_samples", MAX_SAMPLES)))
+    run = runs[engine]
+    if len(run.observables["time"]) != len(idx):
+        raise InputError(where, "time", f"{len(run.observables['time'])} samples stored, "
+                                        f"{len(idx)} expected from n_full = {n_full}")
+    return Golden(Path(path), run, idx, n_full, tol, attrs)
+
+
+# ---------------------------------------------------------------------------------------
+# comparing
+# ---------------------------------------------------------------------------------------
+def _events(run: EngineRun) -> list[tuple[str, str, float]]:
+    return [(e.kind, e.detail, e.time) for e in run.events]
+
+
+def compare_with_golden(case, run: EngineRun, golden: Golden) -> GateResult:
+    """The gate's verdict on `run` (of `case`'s short variant) against `golden`."""
+    res = GateResult(case.name, run.engine)
+    if golden.attrs.get("case_hash") != case.file_hash:
+        res.inputs_changed.append(f"case file {case.path} changed since the golden was blessed "
+                                  f"({str(golden.attrs.get('case_hash'))[:12]} → {case.file_hash[:12]})")
+    if golden.attrs.get("param_hash") != case.params.digest():
+        res.inputs_changed.append(f"parameter set changed since the golden was blessed "
+                                  f"({str(golden.attrs.get('param_hash'))[:12]} → {case.params.digest()[:12]})")
+    t_new = np.asarray(run.observables["time"], float)
+    if len(t_new) != golden.n_full or not np.array_equal(t_new[golden.index], golden.run.observables["time"]):
+        res.structure.append(f"time grid: {len(t_new)} samples to {t_new[-1]:g} s, golden "
+                             f"{golden.n_full} to {golden.run.observables['time'][-1]:g} s")
+        return res
+    ev_new, ev_old = _events(run), _events(golden.run)
+    if [e[:2] for e in ev_new] != [e[:2] for e in ev_old]:
+        res.structure.append(f"events: {[e[0] for e in ev_old]} → {[e[0] for e in ev_new]}")
+    else:
+        for (kind, _, t1), (_, _, t0) in zip(ev_new, ev_old):
+            if abs(t1 - t0) > EVENT_TIME_TOL:
+                res.structure.append(f"event '{kind}' at {t0:.9g} s → {t1:.9g} s")
+    if [(p.name, p.t_start, p.t_end) for p in run.phases] != [(p.name, p.t_start, p.t_end) for p in golden.run.phases]:
+        res.structure.append("phases: " + ", ".join(f"{p.name} [{p.t_start:g}, {p.t_end:g}]" for p in run.phases))
+    for name, (d, t) in differences(run, golden.run, golden.index).items():
+        tol = golden.tolerances[name]
+        worst = float(np.max(d)) if d.size else 0.0
+        res.largest_ratio = max(res.largest_ratio, worst / tol if tol > 0 else (np.inf if worst > 0 else 0.0))
+        if worst > tol:
+            first = int(np.argwhere(d > tol)[0][0])
+            comp = int(np.unravel_index(np.argmax(d), d.shape)[1])
+            res.moved.append(Moved(name, worst, tol, float(t[first]), comp))
+    return res
+
+
+# ---------------------------------------------------------------------------------------
+# blessing
+# ---------------------------------------------------------------------------------------
+def perturbed_case(case):
+    """`case` with every mass of its parameters scaled by (1 + PERTURBATION)."""
+    from rsmcheck.params import Params
+
+    values = case.params.to_dict()
+    for section in ("base", "target", "link"):
+        values[section]["mass"] *= 1.0 + PERTURBATION
+    return dataclasses.replace(case, params=Params.from_overrides(values, "<perturbation>"))
+
+
+def summarize_change(old: Golden | None, new_run: EngineRun, case) -> list[str]:
+    """Lines for the changelog: what moved between the old golden and the new run."""
+    if old is None:
+        return ["new golden"]
+    lines = []
+    res = compare_with_golden(case, new_run, old)
+    lines += res.inputs_changed + res.structure
+    for m in res.moved:
+        lines.append(f"{m.observable}: changed by {m.change:.3e} (gate tolerance {m.tolerance:.3e}; "
+                     f"first at t = {m.first_time:.4g} s)")
+    if not lines:
+        lines.append(f"unchanged (largest change {res.largest_ratio:.2g} × its gate tolerance)")
+    return lines
+
+
+def append_changelog(root: Path, reason: str, entries: Iterable[tuple[str, str, list[str]]]) -> Path:
+    """Prepend one bless entry (newest first) to goldens/CHANGELOG.md, atomically."""
+    path = Path(root) / CHANGELOG
+    head = "# Golden changelog\n\nOne entry per `rsmcheck bless`, newest first.\n\n"
+    old = path.read_text() if path.exists() else head
+    body = old[len(head):] if old.startswith(head) else old
+    commit, dirty = git_commit()
+    when = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    lines = [f"## {when} — {reason}", "", f"Commit {commit}" + (" (with uncommitted changes)" if dirty == "yes" else "")
+             + f"; platform {platform.platform()}.", ""]
+    for case, engine, what in entries:
+        lines.append(f"- **{case} / {engine}**: " + "; ".join(what))
+    text = head + "\n".join(lines) + "\n\n" + body
+    tmp = path.with_suffix(".md.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+    return path
+
+
+# ---------------------------------------------------------------------------------------
+# running: every (case, engine[, perturbed]) job in a pool of two processes
+# ---------------------------------------------------------------------------------------
+def gated_cases() -> list:
+    """The cases with goldens: every stand-alone case (sequences are gated phase by phase)."""
+    from cases.loader import list_cases, load_case
+
+    return [c for c in (load_case(p) for p in list_cases()) if not c.phases and c.variant(True).has_initial]
+
+
+def _job(engine: str, case, perturbed: bool) -> EngineRun:
+    from rsmcheck.compare import _run_child
+
+    variant = perturbed_case(case) if perturbed else case
+    return _run_child(engine, variant, variant.duration, {})
+
+
+def run_jobs(jobs: list[tuple[Any, str, bool]], progress=None, workers: int = 2) -> dict[tuple[str, str, bool], EngineRun]:
+    """Run (short variant, engine, perturbed) jobs, `workers` at a time; results by
+    (case name, engine, perturbed).  `progress(text)` is told of each finished job."""
+    import multiprocessing
+    import time
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    out = {}
+    t0 = time.monotonic()
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(_job, engine, case, pert): (case.name, engine, pert) for case, engine, pert in jobs}
+        for n, fut in enumerate(as_completed(futures), 1):
+            key = futures[fut]
+            out[key] = fut.result()
+            if progress:
+                progress(f"{n}/{len(jobs)} {key[0]} / {key[1]}{' (perturbed)' if key[2] else ''} "
+                         f"done at {time.monotonic() - t0:.0f} s")
+    return out
+
+
+def gate(cases: list, engines: list[str], root: Path = GOLDEN_DIR, progress=None) -> list[GateResult]:
+    """Run the short variant of every case in every engine and compare with its golden.
+    Every golden is read (and a bad one reported, InputError) before anything runs."""
+    variants = [c.variant(True) for c in cases]
+    goldens = {(v.name, e): read_golden(golden_path(v.name, e, root), e) for v in variants for e in engines}
+    runs = run_jobs([(v, e, False) for v in variants for e in engines], progress)
+    return [compare_with_golden(v, runs[(v.name, e, False)], goldens[(v.name, e)]) for v in variants for e in engines]
+
+
+def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR, progress=None) -> list[tuple[str, str, list[str]]]:
+    """Re-run and rewrite the goldens of `cases` (nominal and perturbed runs, the gate
+    tolerances measured from the pair) and prepend what moved to the changelog."""
+    if not reason or not reason.strip():
+        raise InputError("bless", "--reason", "a bless needs a reason (what changed and why the new results are right)")
+    variants = [c.variant(True) for c in cases]
+    runs = run_jobs([(v, e, p) for v in variants for e in engines for p in (False, True)], progress)
+    entries = []
+    for v in variants:
+        for e in engines:
+            path = golden_path(v.name, e, root)
+            try:
+                old = read_golden(path, e) if path.exists() else None
+            except InputError:
+                old = None
+            nominal = runs[(v.name, e, False)]
+            tol, delta = measured_tolerances(nominal, runs[(v.name, e, True)])
+            what = summarize_change(old, nominal, v) if old is not None else ["new golden"]
+            write_golden(path, v, nominal, tol, delta, reason.strip())
+            entries.append((v.name, e, what))
+    append_changelog(root, reason.strip(), entries)
+    return entries
+
+
+def tolerance_table(cases: list, engines: list[str], root: Path = GOLDEN_DIR) -> list[dict[str, Any]]:
+    """Per (case, engine, observable): the gate tolerance, the change the perturbation
+    caused and the observable's largest magnitude, as stored in the goldens."""
+    rows = []
+    for c in cases:
+        for e in engines:
+            g = read_golden(golden_path(c.name, e, root), e)
+            size = scales(g.run)
+            for name in NAMES:
+                rows.append({"case": c.name, "engine": e, "observable": name, "tolerance": g.tolerances[name],
+                             "perturbation_change": float(g.attrs.get(_DELTA + name, float("nan"))),
+                             "largest_value": size[name]})
+    return rows

@@ -1,0 +1,159 @@
+"""The regression gate (docs/gate.md): goldens written and read back with their provenance,
+gate tolerances measured from a perturbed run, moved results found with the observable and
+the first time, changed inputs reported as such, bad goldens and a bless without a reason
+stopped with exit 2."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import h5py
+import numpy as np
+import pytest
+
+from cases.loader import load_case
+from reference_model.engine import ReferenceEngine
+from rsmcheck.cli import main
+from rsmcheck.gate import (
+    PERTURBATION,
+    compare_with_golden,
+    golden_path,
+    kept_samples,
+    measured_tolerances,
+    perturbed_case,
+    read_golden,
+    write_golden,
+)
+from rsmcheck.runner import run
+
+TINY = """\
+name = "tiny"
+description = "a tiny valid case for the gate"
+duration = 0.05
+[initial]
+grasp = [1, 0]
+[solver]
+control_period = 1e-3
+output_period = 1e-3
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    d = tmp_path_factory.mktemp("gate")
+    path = d / "tiny.toml"
+    path.write_text(TINY)
+    return load_case(path).variant(True), d
+
+
+@pytest.fixture(scope="module")
+def tiny_runs(tiny):
+    case, _ = tiny
+    nominal = run(ReferenceEngine(case), case, case.duration)
+    pert = perturbed_case(case)
+    perturbed = run(ReferenceEngine(pert), pert, pert.duration)
+    return nominal, perturbed
+
+
+def test_kept_samples_stride_and_keep_the_last():
+    assert kept_samples(5, 100).tolist() == [0, 1, 2, 3, 4]
+    idx = kept_samples(1001, 100)
+    assert len(idx) <= 101 and idx[0] == 0 and idx[-1] == 1000
+    assert np.all(np.diff(idx)[:-1] == 11)
+
+
+def test_perturbation_scales_every_mass_and_nothing_else(tiny):
+    case, _ = tiny
+    p0, p1 = case.params, perturbed_case(case).params
+    for section in ("base", "target", "link"):
+        assert getattr(p1, section).mass == pytest.approx(getattr(p0, section).mass * (1 + PERTURBATION), rel=1e-15)
+        assert getattr(p1, section).mass != getattr(p0, section).mass
+    assert p1.motor == p0.motor and p1.geometry == p0.geometry
+
+
+def test_gate_tolerances_are_measured_from_the_perturbed_run(tiny_runs):
+    nominal, perturbed = tiny_runs
+    tol, delta = measured_tolerances(nominal, perturbed)
+    # the perturbation moves the dynamics, but only at its own relative size
+    assert 0 < delta["base_pose_I"] < 1e-9
+    assert tol["base_pose_I"] >= 10 * delta["base_pose_I"]
+    assert delta["time"] == 0 and tol["time"] > 0  # the floor: never a zero tolerance
+
+
+def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
+    case, _ = tiny
+    nominal, perturbed = tiny_runs
+    tol, delta = measured_tolerances(nominal, perturbed)
+    path = write_golden(golden_path(case.name, "reference", tmp_path), case, nominal, tol, delta, "test")
+    g = read_golden(path, "reference")
+    for key in ("case_hash", "param_hash", "git_commit", "reason", "blessed_utc", "platform", "version.numpy"):
+        assert g.attrs[key], key
+    assert g.run.versions["numba"]  # the engine's package versions travel with the run
+    assert compare_with_golden(case, nominal, g).unchanged
+    assert compare_with_golden(case, perturbed, g).unchanged  # reproducibility level passes
+
+    # a moved observable: which one, by how much, from when
+    obs = {k: v.copy() for k, v in nominal.observables.items()}
+    obs["ee2_pos_B"][30:, 1] += 1e-6
+    res = compare_with_golden(case, dataclasses.replace(nominal, observables=obs), g)
+    assert [m.observable for m in res.moved] == ["ee2_pos_B"]
+    m = res.moved[0]
+    assert m.change == pytest.approx(1e-6, rel=1e-6) and m.component == 1
+    t_kept = nominal.observables["time"][g.index]
+    assert m.first_time == t_kept[t_kept >= nominal.observables["time"][30]][0]
+
+    # changed inputs are reported as such, not as numbers
+    res = compare_with_golden(dataclasses.replace(case, file_hash="0" * 64), nominal, g)
+    assert res.inputs_changed and not res.moved and not res.unchanged
+
+    # a different time grid or event list is structural
+    short = dataclasses.replace(nominal, observables={k: v[:-1] for k, v in nominal.observables.items()})
+    assert compare_with_golden(case, short, g).structure
+
+
+def test_bad_goldens_are_input_errors(tiny, tiny_runs, tmp_path):
+    from rsmcheck.errors import InputError
+
+    case, _ = tiny
+    with pytest.raises(InputError, match="bless it first"):
+        read_golden(tmp_path / "nothing.h5", "reference")
+    (tmp_path / "junk.h5").write_bytes(b"not hdf5")
+    with pytest.raises(InputError, match="not an HDF5 file"):
+        read_golden(tmp_path / "junk.h5", "reference")
+    nominal, perturbed = tiny_runs
+    tol, delta = measured_tolerances(nominal, perturbed)
+    path = write_golden(tmp_path / "g.h5", case, nominal, tol, delta, "test")
+    with h5py.File(path, "a") as f:
+        f.attrs["golden_schema"] = 99
+    with pytest.raises(InputError, match="golden_schema"):
+        read_golden(path, "reference")
+
+
+def test_cli_bless_gate_unchanged_moved_and_bad_input(tiny, tmp_path, capsys):
+    case, _ = tiny
+    goldens = tmp_path / "goldens"
+    args = [str(case.path), "--engine", "reference", "--goldens", str(goldens)]
+    assert main(["bless", *args]) == 2  # no reason, no bless
+    assert "--reason" in capsys.readouterr().err
+    assert not goldens.exists()
+    assert main(["gate", *args]) == 2  # no golden yet
+    assert "bless it first" in capsys.readouterr().err
+    assert main(["bless", *args, "--reason", "first goldens of the tiny case"]) == 0
+    log = (goldens / "CHANGELOG.md").read_text()
+    assert "first goldens of the tiny case" in log and "tiny / reference**: new golden" in log
+    assert main(["gate", *args]) == 0
+    assert "unchanged" in capsys.readouterr().out
+
+    # one stored value off by 1 µm: the gate says what moved and exits 1
+    path = golden_path("tiny", "reference", goldens)
+    with h5py.File(path, "a") as f:
+        f["reference/ee1_pos_B"][20, 0] += 1e-6
+    assert main(["gate", *args]) == 1
+    out = capsys.readouterr().out
+    assert "MOVED" in out and "ee1_pos_B" in out
+
+    # re-blessing records what moved in the changelog, newest entry first
+    assert main(["bless", *args, "--reason", "restore the tiny golden"]) == 0
+    log = (goldens / "CHANGELOG.md").read_text()
+    assert log.index("restore the tiny golden") < log.index("first goldens of the tiny case")
+    assert "ee1_pos_B: changed by 1.000e-06" in log
