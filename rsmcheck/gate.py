@@ -108,6 +108,29 @@ class GateResult:
 # ---------------------------------------------------------------------------------------
 # golden files
 # ---------------------------------------------------------------------------------------
+#: keys of a case file that explain and do not change a run (the gate ignores them, as
+#: it ignores comments: a reworded reason does not need a bless)
+PROSE_KEYS = frozenset({"why", "description", "gains"})
+
+
+def case_inputs_hash(case) -> str:
+    """SHA-256 of the case file's parsed content without its prose (`PROSE_KEYS`)."""
+    import hashlib
+    import json
+    import tomllib
+
+    def strip(x):
+        if isinstance(x, dict):
+            return {k: strip(v) for k, v in x.items() if k not in PROSE_KEYS}
+        if isinstance(x, list):
+            return [strip(v) for v in x]
+        return x
+
+    with open(case.path, "rb") as f:
+        data = strip(tomllib.load(f))
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+
+
 def golden_path(case_name: str, engine: str, root: Path = GOLDEN_DIR) -> Path:
     return Path(root) / f"{case_name}.{engine}.h5"
 
@@ -177,6 +200,7 @@ def write_golden(path: Path, case, run: EngineRun, tolerances: dict[str, float],
         "reason": reason, "blessed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "platform": platform.platform(), "machine": platform.machine(),
         "perturbation": PERTURBATION, "tol_factor": TOL_FACTOR, "rel_floor": REL_FLOOR,
+        "case_inputs_hash": case_inputs_hash(case),
     }
     extra.update({_TOL + k: float(v) for k, v in tolerances.items()})
     extra.update({_DELTA + k: float(v) for k, v in deltas.items()})
@@ -222,9 +246,11 @@ def _events(run: EngineRun) -> list[tuple[str, str, float]]:
 def compare_with_golden(case, run: EngineRun, golden: Golden) -> GateResult:
     """The gate's verdict on `run` (of `case`'s short variant) against `golden`."""
     res = GateResult(case.name, run.engine)
-    if golden.attrs.get("case_hash") != case.file_hash:
+    inputs = case_inputs_hash(case)
+    if golden.attrs.get("case_inputs_hash") != inputs:
         res.inputs_changed.append(f"case file {case.path} changed since the golden was blessed "
-                                  f"({str(golden.attrs.get('case_hash'))[:12]} → {case.file_hash[:12]})")
+                                  f"(content without prose {str(golden.attrs.get('case_inputs_hash'))[:12]} → "
+                                  f"{inputs[:12]})")
     if golden.attrs.get("param_hash") != case.params.digest():
         res.inputs_changed.append(f"parameter set changed since the golden was blessed "
                                   f"({str(golden.attrs.get('param_hash'))[:12]} → {case.params.digest()[:12]})")

@@ -252,11 +252,14 @@ ORBIT_OBSERVABLES = ("base_pose_I", "ee1_pos_B", "ee2_pos_B", "target_pose_B", "
                      "com_pos_B", "motor_torques", "base_torque", "link_deflection", "capture_gap_B")
 
 
-def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, log=None) -> dict[str, Any]:
+def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, log=None,
+                with_runs: Path | None = None) -> dict[str, Any]:
     """Each phase's short variant (stand-alone start) with its orbit and without it, the
     reference engine: max_t |with − without| per observable (the base attitude is compared
     relative to the orbital frame's turn: without the orbit the base holds its attitude,
-    with it the base tracks the retrograde direction, n = 1.06e-3 rad/s)."""
+    with it the base tracks the retrograde direction, n = 1.06e-3 rad/s).  `with_runs`: a
+    folder of run files of the short variants as they are (`rsmcheck check --short --out`),
+    whose reference runs are used instead of running the phases with the orbit again."""
     from dataclasses import replace
 
     from cases.loader import OrbitSpec, load_case
@@ -269,7 +272,12 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
                        initial=replace(case.initial, base_rate=(0.0, 0.0, 0.0)),
                        segments=tuple(replace(sg, base="hold" if sg.base == "retrograde" else sg.base)
                                       for sg in case.segments))
-        with_orbit, w1 = _run("reference", case, case.duration)
+        if with_runs is not None:
+            from rsmcheck.store import read_run
+
+            with_orbit, w1 = read_run(Path(with_runs) / f"{name}.h5")[0]["reference"], None
+        else:
+            with_orbit, w1 = _run("reference", case, case.duration)
         without, w2 = _run("reference", flat, flat.duration)
         row = {}
         for n in ORBIT_OBSERVABLES:
@@ -339,6 +347,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     o = sub.add_parser("orbit")
     o.add_argument("cases", nargs="*", default=list(MISSION_PHASES))
     o.add_argument("--out", default=str(DATA_DIR / "orbit_effect.json"))
+    o.add_argument("--with-runs", help="folder of short run files (rsmcheck check --short --out) to take the runs in orbit from")
     a = p.parse_args(argv)
 
     def log(msg: str) -> None:
@@ -352,7 +361,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             rigid_step_study(a.cases, a.substeps, duration=a.duration,
                              out=out, log=log, exudyn_options={"constraints": a.constraints})
         elif a.study == "orbit":
-            orbit_study(a.cases, out=Path(a.out), log=log)
+            orbit_study(a.cases, out=Path(a.out), log=log, with_runs=Path(a.with_runs) if a.with_runs else None)
         elif a.study == "refinement":
             out = Path(a.out) if a.out else DATA_DIR / f"refinement_{a.case}.json"
             refinement_study(a.case, a.modes, a.exudyn, out=out, log=log)
