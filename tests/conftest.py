@@ -1,10 +1,12 @@
-"""Shared engine runs for the crosscheck tests.
+"""Shared engine runs for every test that needs a case's run as `rsmcheck run` makes it.
 
 Every (case, engine) run is done once per session, in a pool of two worker processes
-(the engines are independent: two cores halve the wall time).  As soon as collection is
-finished every run the collected tests will need is submitted, in collection order, so the
-runs proceed in the background while the tests collected before them (tests/cases, which
-need no pool) run in the main process; each test then waits only for its own case.
+(the engines are independent: two cores halve the wall time), whichever tests use it: the
+feature and mission tests (tests/cases), the cross-check (tests/crosscheck/test_cases.py)
+and the gate (tests/crosscheck/test_gate.py) read the same runs.  As soon as collection is
+finished every run the collected tests will need is submitted, in collection order; each
+test then waits only for its own runs.  A test declares them with
+`pytest.mark.engine_runs((case, engine, short, options), ...)`.
 """
 
 from __future__ import annotations
