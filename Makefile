@@ -11,7 +11,7 @@ PYTEST_ARGS ?=
 PACKAGE_INITS := $(wildcard rsmcheck/__init__.py reference_model/__init__.py \
 	exudyn_model/__init__.py pinocchio_check/__init__.py cases/__init__.py report/__init__.py)
 
-.PHONY: venv test study report clean
+.PHONY: venv test study report faults clean
 
 venv: $(STAMP)
 
@@ -30,6 +30,11 @@ test: venv
 
 study: venv
 	$(VPY) -m pytest -m study $(PYTEST_ARGS)
+
+# Fault injection (docs/gate.md): ~17 plausible bugs, each in a copy of the tree; which
+# checks catch which.  Not in CI (≈ 40 min on 2 cores); writes docs/data/faults.json.
+faults: venv
+	$(VPY) -m rsmcheck.faults
 
 report: venv
 	mkdir -p out

@@ -195,6 +195,29 @@ def _studies_html(data_dir: Path = DATA_DIR) -> str:
             + "".join(parts))
 
 
+def _faults_html(data_dir: Path = DATA_DIR) -> str:
+    """The fault-injection catch matrix (`make faults` → docs/data/faults.json), if present."""
+    docs = [doc for _, doc in _stored(data_dir, "faults.json")]
+    if not docs:
+        return ""
+    doc = docs[0]
+    rows = []
+    for f in doc.get("faults", []):
+        expected = f.get("layer") == "none"
+        ok = (not f.get("caught_by")) if expected else bool(f.get("caught_by"))
+        verdict = "<span class='pass'>as expected</span>" if ok else "<span class='fail'>MISSED</span>" if not expected \
+            else "<span class='fail'>FALSE ALARM</span>"
+        rows.append([html.escape(f.get("name", "")), html.escape(f.get("layer", "")), html.escape(f.get("what", "")),
+                     html.escape("; ".join(f.get("crosscheck", [])[:3]) or "—"),
+                     html.escape("; ".join(f.get("pinocchio", [])[:3]) or "—"),
+                     html.escape("; ".join(f.get("gate", [])[:3]) or "—"), verdict])
+    return ("<h2 id='faults'>Fault injection: what the suite catches</h2><p class='small'>"
+            f"<code>make faults</code> at commit {html.escape(str(doc.get('commit', ''))[:12])}: each fault applied "
+            f"to a copy of the tree, the short variants of {html.escape(', '.join(doc.get('cases', [])))} re-run by "
+            "the engines it reaches; which checks fail (docs/gate.md).</p>"
+            + _table(["fault", "layer", "what", "cross-check", "Pinocchio", "gate", "verdict"], rows, left=3))
+
+
 def _case_section(case: Case, runs: dict[str, EngineRun], short: bool) -> str:
     parts = [f"<h2 id='{case.name}'>{html.escape(case.name)}</h2>",
              f"<p>{html.escape(case.description)}</p>",
@@ -260,11 +283,13 @@ def build_report(out: Path, engines: Sequence[str], short: bool,
                 + _table(["quantity", "chain", "holding", "modes", "states", "max error", "tolerance", "result"], pin_rows))
     modes_html = _modes_html() if "exudyn" in engines else ""
     studies_html = _studies_html()
-    extra = [(a, t) for a, t, h in (("modes", "eigenfrequencies", modes_html), ("studies", "engine studies", studies_html)) if h]
+    faults_html = _faults_html()
+    extra = [(a, t) for a, t, h in (("modes", "eigenfrequencies", modes_html), ("studies", "engine studies", studies_html),
+                                    ("faults", "fault injection", faults_html)) if h]
     if extra:
         toc = toc.replace("<p>", "<p>" + " · ".join(f"<a href='#{a}'>{t}</a>" for a, t in extra) + " · ", 1)
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>rsmcheck report</title>"
-            f"<style>{CSS}</style></head><body>{head}{toc}{pin_html}{modes_html}{studies_html}"
+            f"<style>{CSS}</style></head><body>{head}{toc}{pin_html}{modes_html}{studies_html}{faults_html}"
             f"{''.join(sections)}</body></html>")
     tmp = out.with_name(out.name + ".tmp")
     try:

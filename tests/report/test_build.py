@@ -53,3 +53,21 @@ def test_engine_comparison_shows_the_switch_sample_left_out():
         runs[engine] = EngineRun(engine, obs, events=[Event(1.0, "release", "arm=2")])
     page = _compare_html(case, runs, short=True)
     assert "not compared at the constraint switch (t = 1 s: 0.9)" in page
+
+
+def test_fault_matrix_section_marks_missed_faults_and_false_alarms(tmp_path):
+    import json
+
+    from report.build import _faults_html
+
+    assert _faults_html(tmp_path) == ""
+    doc = {"commit": "abc", "cases": ["release"], "faults": [
+        {"name": "caught", "layer": "reference", "what": "x", "crosscheck": ["release: ee2_pos_B"], "pinocchio": [],
+         "gate": ["release/reference: ee2_pos_B"], "caught_by": ["crosscheck", "gate"]},
+        {"name": "missed", "layer": "exudyn", "what": "y", "crosscheck": [], "pinocchio": [], "gate": [], "caught_by": []},
+        {"name": "noop", "layer": "none", "what": "z", "crosscheck": [], "pinocchio": [], "gate": [], "caught_by": []},
+    ]}
+    (tmp_path / "faults.json").write_text(json.dumps(doc))
+    page = _faults_html(tmp_path)
+    assert page.count("as expected") == 2 and page.count("MISSED") == 1
+    assert "release/reference: ee2_pos_B" in page

@@ -1,0 +1,260 @@
+"""Fault injection: which checks of the suite catch which plausible modelling bugs.
+
+`make faults` (not in CI; ≈ 40 min on 2 cores) = ``python -m rsmcheck.faults``.  Each
+fault of `FAULTS` is one textual change (an exact string that must occur once) applied to
+a temporary copy of the tree; in that copy the short variants of `CASES` are run by the
+engines the fault can affect, and three kinds of check look at them:
+
+* **cross-check**: the case's `[compare]` rows, reference against Exudyn.  When only one
+  engine is faulted, the other engine's run is its golden (at the golden's samples);
+* **Pinocchio**: `pinocchio_check.compare.run_checks` (rigid kinematics and dynamics of the
+  reference, 20 seeded states per chain, rigid and with modes), for faults that reach the
+  reference;
+* **gate**: each re-run engine against its golden (docs/gate.md).
+
+The catch matrix goes to docs/data/faults.json and into the report.  The control fault
+("noop_commuted_sum") changes code without changing arithmetic and must be caught by
+nothing: it shows that the gate is not a change detector for text.  Faults in the
+reference's compiled core are run one after the other, so the copy's numba cache is
+rebuilt once per such fault, not once per process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "docs" / "data" / "faults.json"
+#: the cases every fault is tried on: fast short variants that together exercise every
+#: mechanism (open/closed chain, capture-free release, bistop, orbit, thrust, growth)
+CASES = ("p1_rigid_gains", "flex_arm_step", "release", "gravity_gradient", "wrist_bistop", "thrust_burn")
+PINOCCHIO_STATES = 20
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One plausible bug: `old` → `new` in `path` (relative to the tree's root)."""
+
+    name: str
+    layer: str  # "reference", "exudyn" or "shared" (both engines read it)
+    path: str
+    old: str
+    new: str
+    what: str
+
+
+FAULTS: tuple[Fault, ...] = (
+    # ---- the reference model ---------------------------------------------------------
+    Fault("ref_coriolis_factor", "reference", "reference_model/core.py",
+          "V[0] = w * w * (c * s1x - s * s1y) + 2.0 * w * c * pbd",
+          "V[0] = w * w * (c * s1x - s * s1y) + 1.0 * w * c * pbd",
+          "Coriolis term 2θ̇ A S e_y (φ̄·ȧ) of a link's x force with factor 1 instead of 2"),
+    Fault("ref_rotary_inertia", "reference", "reference_model/core.py",
+          "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_I0]",
+          "the links' rotary inertia beyond the slender beam (J_extra) left out"),
+    Fault("ref_kelvin_voigt_half", "reference", "reference_model/core.py",
+          "kf += m.k_ff[i, b, a, e] * (q[o + e] + sc[S_ETA] * qd[o + e])",
+          "kf += m.k_ff[i, b, a, e] * (q[o + e] + 0.5 * sc[S_ETA] * qd[o + e])",
+          "Kelvin–Voigt coefficient η = ζ/ω₁ instead of 2ζ/ω₁ (half the structural damping)"),
+    Fault("ref_tidal_exponent", "reference", "reference_model/core.py",
+          "f = -math.expm1(-1.5 * math.log1p(qv))", "f = -math.expm1(-1.45 * math.log1p(qv))",
+          "gravity-gradient law: (1+q)^(−1.45) instead of (1+q)^(−3/2) (tidal coefficient 2.9 instead of 3)"),
+    Fault("ref_mass_flow_g0", "reference", "reference_model/core.py",
+          "dx[2 * ns + 4] = u[U_THRUST] / m.sc[S_ISPG0]",
+          "dx[2 * ns + 4] = u[U_THRUST] / (m.sc[S_ISPG0] * 9.81 / 9.80665)",
+          "mass flow T/(Isp g0) with g0 = 9.81 instead of 9.80665 m/s²"),
+    Fault("ref_thrust_direction", "reference", "reference_model/core.py",
+          "f[0] += mB * aunif[0] + thrust * cb", "f[0] += mB * aunif[0] + thrust * cb * 0.99",
+          "thrust x component 1 % short (a misaligned nozzle in one engine only)"),
+    Fault("ref_baumgarte_damping", "reference", "reference_model/core.py",
+          "- 2.0 * sc[S_ALPHA] * phid[row + d]", "- sc[S_ALPHA] * phid[row + d]",
+          "Baumgarte eq. (12): φ̈ + α φ̇ + β² φ instead of φ̈ + 2α φ̇ + β² φ"),
+    Fault("ref_modal_stiffness", "reference", "reference_model/beam_modes.py",
+          "k_ff = ei * (phi2.T * w) @ phi2", "k_ff = 1.02 * ei * (phi2.T * w) @ phi2",
+          "modal stiffness 2 % high (a wrong EI in the reference's modal integrals)"),
+    Fault("ref_modal_mass", "reference", "reference_model/beam_modes.py",
+          "m_ff = rho_a * (phi.T * w) @ phi", "m_ff = 1.02 * rho_a * (phi.T * w) @ phi",
+          "modal mass 2 % high"),
+    Fault("ref_basis_switch_drops_momentum", "reference", "reference_model/switching.py",
+          "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, report.dropped_momentum)",
+          "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, None)",
+          "release: the generalised momentum the PF basis cannot carry is dropped, not given back"),
+    # ---- the Exudyn model ------------------------------------------------------------
+    Fault("exu_rotor_inertia", "exudyn", "exudyn_model/engine.py",
+          "M[6, 6] = mo.inertia", "M[6, 6] = 0.9 * mo.inertia",
+          "Exudyn: gear-motor rotor inertia B_m 10 % low"),
+    Fault("exu_hub_inertia", "exudyn", "exudyn_model/engine.py",
+          "inertia=p.link.inertia_extra))", "inertia=0.0))",
+          "Exudyn: the links' extra rotary inertia (hub body) left out"),
+    Fault("exu_bistop_stiffness", "exudyn", "exudyn_model/engine.py",
+          "limitStopsStiffness=w.stiffness,", "limitStopsStiffness=0.5 * w.stiffness,",
+          "Exudyn: wrist bistop stiffness halved"),
+    # ---- shared inputs: both engines move together -------------------------------------
+    Fault("params_link_mass", "shared", "rsmcheck/params.py",
+          'mass: float = _p(36.49, "Table 1.")', 'mass: float = _p(36.59, "Table 1.")',
+          "parameter set: link mass 36.59 kg instead of 36.49 kg (Table 1 typo)"),
+    Fault("controller_rate_filter", "shared", "rsmcheck/controllers.py",
+          "alpha = 1.0 - math.exp(-2.0 * math.pi * fc * dt) if fc > 0 else 1.0",
+          "alpha = 1.0 - math.exp(-math.pi * fc * dt) if fc > 0 else 1.0",
+          "controller: the rate filter's corner at f_c/2 (ω = π f_c instead of 2π f_c)"),
+    Fault("case_flex_arm_step_torque", "shared", "cases/flex_arm_step.toml",
+          "motor_torques = [0.0, 0.0, 0.0, 10.0, 0.0, 0.0]",
+          "motor_torques = [0.0, 0.0, 0.0, 10.5, 0.0, 0.0]",
+          "case file: flex_arm_step's shoulder torque 10.5 N·m instead of 10"),
+    # ---- control: a code change that changes no arithmetic ----------------------------
+    Fault("noop_commuted_sum", "none", "reference_model/core.py",
+          "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_JEX] + sc[S_I0]",
+          "control: a commuted sum (exact in IEEE arithmetic); must be caught by nothing"),
+)
+
+
+# ---------------------------------------------------------------------------------------
+# the driver: one copy of the tree, faults applied and reverted one after the other
+# ---------------------------------------------------------------------------------------
+def _tree_files(root: Path) -> list[str]:
+    out = subprocess.run(["git", "ls-files"], cwd=root, capture_output=True, text=True, check=True)
+    return [f for f in out.stdout.splitlines() if (root / f).is_file()]
+
+
+def make_copy(root: Path, dest: Path) -> Path:
+    """A copy of every tracked file (mtimes kept, so a reverted file hits numba's cache)."""
+    if dest.exists():
+        shutil.rmtree(dest)
+    for f in _tree_files(root):
+        (dest / f).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(root / f, dest / f)
+    return dest
+
+
+def apply(fault: Fault, tree: Path) -> None:
+    path = tree / fault.path
+    text = path.read_text()
+    n = text.count(fault.old)
+    if n != 1:
+        raise RuntimeError(f"fault {fault.name}: the text to change occurs {n} times in {fault.path} "
+                           f"(must be once): {fault.old!r}")
+    path.write_text(text.replace(fault.old, fault.new))
+
+
+def revert(fault: Fault, root: Path, tree: Path) -> None:
+    shutil.copy2(root / fault.path, tree / fault.path)
+
+
+def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
+    apply(fault, tree)
+    t0 = time.monotonic()
+    try:
+        env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(tree / ".numba_cache")}
+        proc = subprocess.run([sys.executable, "-m", "rsmcheck.faults", "probe", fault.name],
+                              cwd=tree, env=env, capture_output=True, text=True)
+    finally:
+        revert(fault, ROOT, tree)
+    if proc.returncode != 0:
+        raise RuntimeError(f"fault {fault.name}: the probe failed:\n{proc.stderr[-3000:]}")
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    result.update(asdict(fault), wall_s=round(time.monotonic() - t0, 1))
+    result["caught_by"] = [k for k in ("crosscheck", "pinocchio", "gate") if result[k]]
+    progress(f"{fault.name}: caught by {', '.join(result['caught_by']) or 'NOTHING'} "
+             f"({result['wall_s']:.0f} s)")
+    return result
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m rsmcheck.faults", description=__doc__.split("\n\n")[0])
+    ap.add_argument("command", nargs="?", default="all", help="all (default) or probe")
+    ap.add_argument("names", nargs="*", help="only these faults (default: all)")
+    ap.add_argument("--out", default=str(OUT))
+    ap.add_argument("--tree", default="/tmp/rsmcheck-faults/tree", help="where the copy of the tree goes")
+    args = ap.parse_args(argv)
+    if args.command == "probe":
+        print(json.dumps(probe(_by_name(args.names[0]))))
+        return 0
+    faults = [_by_name(n) for n in args.names] if args.names else list(FAULTS)
+    tree = make_copy(ROOT, Path(args.tree))
+    print(f"fault injection: {len(faults)} faults on a copy in {tree}; cases {', '.join(CASES)}", flush=True)
+    results = [run_fault(f, tree, lambda s: print(s, flush=True)) for f in faults]
+    from rsmcheck.store import git_commit
+
+    doc = {"cases": list(CASES), "pinocchio_states": PINOCCHIO_STATES, "commit": git_commit()[0],
+           "faults": results}
+    out = Path(args.out)
+    tmp = out.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(doc, indent=1))
+    os.replace(tmp, out)
+    missed = [r["name"] for r in results if r["layer"] != "none" and not r["caught_by"]]
+    false = [r["name"] for r in results if r["layer"] == "none" and r["caught_by"]]
+    print(f"wrote {out}: {len(results) - len(missed) - len(false)} of {len(results)} as expected"
+          + (f"; missed: {', '.join(missed)}" if missed else "") + (f"; control caught: {', '.join(false)}" if false else ""))
+    return 1 if missed or false else 0
+
+
+def _by_name(name: str) -> Fault:
+    for f in FAULTS:
+        if f.name == name:
+            return f
+    raise SystemExit(f"rsmcheck.faults: unknown fault {name!r} (known: {', '.join(f.name for f in FAULTS)})")
+
+
+# ---------------------------------------------------------------------------------------
+# the probe: runs inside the faulted copy (its own imports)
+# ---------------------------------------------------------------------------------------
+def probe(fault: Fault) -> dict:
+    """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
+    import dataclasses
+
+    import numpy as np
+
+    from cases.loader import load_case
+    from rsmcheck.compare import check_runs
+    from rsmcheck.gate import compare_with_golden, golden_path, read_golden, run_jobs
+
+    engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
+    if "reference" in engines:  # compile the core once, in this process, before the workers
+        from reference_model.engine import ReferenceEngine
+        from rsmcheck.runner import run
+
+        c = load_case("p1_rigid_gains").variant(True)
+        run(ReferenceEngine(c), c, 0.002)
+    variants = [load_case(n).variant(True) for n in CASES]
+    runs = run_jobs([(v, e, False) for v in variants for e in engines], None)
+    out = {"crosscheck": [], "pinocchio": [], "gate": []}
+    for v in variants:
+        goldens = {e: read_golden(golden_path(v.name, e), e) for e in ("reference", "exudyn")}
+        new = {e: runs[(v.name, e, False)] for e in engines}
+        for e, r in new.items():
+            g = compare_with_golden(v, r, goldens[e])
+            if not g.unchanged:
+                parts = (["inputs changed"] if g.inputs_changed else []) + g.structure[:1] + [m.observable for m in g.moved]
+                out["gate"].append(f"{v.name}/{e}: " + ", ".join(parts))
+        if len(new) == 2:
+            pair = new
+        else:  # the other engine's golden, this one at the golden's samples
+            (e, r), = new.items()
+            g = goldens[e]
+            if len(r.observables["time"]) != g.n_full:
+                out["crosscheck"].append(f"{v.name}: time grid changed")
+                continue
+            pair = {e: dataclasses.replace(r, observables={k: np.asarray(x)[g.index] for k, x in r.observables.items()}),
+                    **{o: goldens[o].run for o in ("reference", "exudyn") if o != e}}
+        failed = [c for c in check_runs(v, pair["reference"], pair["exudyn"]) if not c.passed]
+        out["crosscheck"] += [f"{v.name}: {c.observable} {c.error:.2e} > {c.tolerance:.1e}" for c in failed]
+    if fault.layer in ("reference", "shared", "none"):
+        from pinocchio_check.compare import run_checks
+
+        for n_modes in (0, 2):
+            rows = run_checks(n_states=PINOCCHIO_STATES, first_seed=0, n_modes=n_modes, open_arms=(1, 2))
+            out["pinocchio"] += sorted({f"{r['quantity']} ({r['chain']}, {n_modes} modes)"
+                                        for r in rows if not r["pass"]})
+    return out
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,35 @@
+"""The fault list of `make faults` (rsmcheck.faults) stays applicable as the code changes:
+every fault's text occurs exactly once where it says, the faults cover the reference, the
+Exudyn model and the shared inputs, and one control fault changes no arithmetic."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rsmcheck.faults import FAULTS, ROOT, apply, revert
+
+
+def test_every_fault_applies_exactly_once():
+    for f in FAULTS:
+        text = (ROOT / f.path).read_text()
+        assert text.count(f.old) == 1, f"{f.name}: {f.old!r} occurs {text.count(f.old)} times in {f.path}"
+        assert f.old != f.new and f.what.strip()
+
+
+def test_the_faults_cover_every_layer_and_one_control():
+    layers = [f.layer for f in FAULTS]
+    assert sum(layer != "none" for layer in layers) >= 15
+    assert {"reference", "exudyn", "shared"} <= set(layers)
+    assert layers.count("none") == 1
+    assert len({f.name for f in FAULTS}) == len(FAULTS)
+
+
+def test_apply_and_revert_on_a_copy(tmp_path):
+    f = FAULTS[0]
+    dest = tmp_path / f.path
+    dest.parent.mkdir(parents=True)
+    dest.write_text((ROOT / f.path).read_text())
+    apply(f, tmp_path)
+    assert f.new in dest.read_text() and f.old not in dest.read_text()
+    revert(f, ROOT, tmp_path)
+    assert dest.read_text() == Path(ROOT / f.path).read_text()
