@@ -98,7 +98,7 @@ Format (every key optional unless marked):
 
     [params]                         # overrides of rsmcheck.params.Params, by section
 
-    [compare.OBSERVABLE]             # engines compared on this observable (issue 5)
+    [compare.OBSERVABLE]             # engines compared on this observable
     tolerance = 1e-3                 # required, > 0, in the observable's unit
     why = "..."                      # required: one sentence justifying the tolerance
     metric = "max_abs"               # max_abs | rms | final | growth

@@ -79,7 +79,7 @@ from rsmcheck.store import package_versions  # noqa: E402
 PP, PF = "PP", "PF"
 #: Default solver settings (convergence study in docs/exudyn.md).
 SUBSTEPS_DEFAULT = 2  # generalized-α steps per 1 ms control period
-SPECTRAL_RADIUS_DEFAULT = 0.6  # ENGINE-NOTES: ≤ 0.6 keeps switched multipliers clean
+SPECTRAL_RADIUS_DEFAULT = 0.6  # docs/exudyn.md §4: ≤ 0.6 keeps switched multipliers clean
 NEWTON_RTOL_DEFAULT = 1e-8
 #: Absolute Newton tolerance of the flexible model [N], per N of axial stiffness EA: the
 #: ANCF axial forces carry a round-off floor ∝ ε_mach·EA (EA·ε·|q|/le and the cancellation
@@ -263,7 +263,7 @@ class ExudynEngine:
                 vel = vel + om * _perp(d)
                 parent_marker = item.dist_marker
 
-        # ---- rotors: linear GenericODE2 over [parent θ, child θ, θ_m] (ENGINE-NOTES) ----
+        # ---- rotors: linear GenericODE2 over [parent θ, child θ, θ_m] (docs/exudyn.md §1) ----
         self.rotor_nodes = []
         self.motor_loads = []
         mo = p.motor

@@ -31,7 +31,7 @@ import sys
 
 import numpy as np
 
-sys.exudynFast = True  # noqa: E402  (ENGINE-NOTES: the fast build, no range checks)
+sys.exudynFast = True  # noqa: E402  (the fast build, no range checks)
 # exudyn announces the fast build on stdout: keep it out of `--json` output
 with contextlib.redirect_stdout(io.StringIO()):
     import exudyn as exu  # noqa: E402

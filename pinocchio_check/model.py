@@ -30,7 +30,7 @@ bistop is not modelled either (wrist torque 0).
 Pinocchio models built here
 ---------------------------
 ``build_model(params, target=...)`` builds one of four trees, joints added depth-first
-(base, arm 1 links, [wrist 1], arm 2 links, [wrist 2], [free target]) — ENGINE-NOTES:
+(base, arm 1 links, [wrist 1], arm 2 links, [wrist 2], [free target]) —
 adding the wrist after the second arm gave a silently wrong ``crba``:
 
 * ``target=None``    the RSM alone (9 dof): mass matrix, bias forces, end-effector kinematics;
@@ -44,7 +44,7 @@ Base joint.  Default ``base_joint="pxpyrz"``: three joints PX → PY → RZ with
 intermediate bodies, so Pinocchio's configuration and velocity of the base ARE
 (x_B, y_B, θ_B) and (ẋ_B, ẏ_B, θ̇_B) in inertial axes and no mapping can hide an error;
 θ_B is an unbounded angle (no cos/sin normalisation).  These are three separate joints,
-not a ``JointModelComposite`` (wrong Coriolis terms upstream, ENGINE-NOTES).  The
+not a ``JointModelComposite`` (it gives wrong Coriolis terms for this chain).  The
 alternative ``base_joint="planar"`` (``JointModelPlanar``: q = (x, y, cos θ, sin θ),
 v = (R(θ)ᵀ ṙ, θ̇) in the LOCAL base frame) is kept as an internal cross-check of the
 mapping below; tests/pinocchio_check show that both give the same reference quantities.
@@ -64,7 +64,7 @@ premultiplying by Tᵀ:
     M_y = Tᵀ M T,             h_y = Tᵀ (nle(q, v) + M Ṫ ẏ),
     J_y = J T,                J̇_y ẏ = J̇ v_pin + J Ṫ ẏ = (classical acceleration at a_pin = Ṫ ẏ),
 
-(ENGINE-NOTES, verified there to 1e-11..1e-16).  h_y is the left-hand-side Coriolis /
+(verified to 1e-11..1e-16 in tests/pinocchio_check).  h_y is the left-hand-side Coriolis /
 centrifugal term, the reference's JᵀMJ̇q̇ of eq. (3) moved to the left.  Forward dynamics:
 τ_pin = T⁻ᵀ Q_y, then ÿ = T⁻¹ (a_pin − Ṫ ẏ).
 

@@ -208,13 +208,9 @@ def _by_name(name: str) -> Fault:
 # ---------------------------------------------------------------------------------------
 def probe(fault: Fault) -> dict:
     """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
-    import dataclasses
-
-    import numpy as np
-
     from cases.loader import load_case
     from rsmcheck.compare import check_runs
-    from rsmcheck.gate import compare_with_golden, golden_path, read_golden, run_jobs
+    from rsmcheck.gate import at_samples, compare_with_golden, golden_path, read_golden, run_jobs
 
     engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
     if "reference" in engines:  # compile the core once, in this process, before the workers
@@ -242,7 +238,7 @@ def probe(fault: Fault) -> dict:
             if len(r.observables["time"]) != g.n_full:
                 out["crosscheck"].append(f"{v.name}: time grid changed")
                 continue
-            pair = {e: dataclasses.replace(r, observables={k: np.asarray(x)[g.index] for k, x in r.observables.items()}),
+            pair = {e: at_samples(r, g.index),
                     **{o: goldens[o].run for o in ("reference", "exudyn") if o != e}}
         failed = [c for c in check_runs(v, pair["reference"], pair["exudyn"]) if not c.passed]
         out["crosscheck"] += [f"{v.name}: {c.observable} {c.error:.2e} > {c.tolerance:.1e}" for c in failed]

@@ -146,6 +146,11 @@ def kept_samples(n_full: int, max_samples: int = MAX_SAMPLES) -> np.ndarray:
     return idx
 
 
+def at_samples(run: EngineRun, index: np.ndarray) -> EngineRun:
+    """`run` with every observable at the sample indices `index` (events, phases kept)."""
+    return dataclasses.replace(run, observables={k: np.asarray(v)[index] for k, v in run.observables.items()})
+
+
 def scales(run: EngineRun) -> dict[str, float]:
     """Largest finite magnitude of each observable (the size a relative floor refers to)."""
     out = {}
@@ -194,7 +199,7 @@ def write_golden(path: Path, case, run: EngineRun, tolerances: dict[str, float],
     """Write the decimated `run` of the short variant of `case` with its provenance."""
     n_full = len(run.observables["time"])
     idx = kept_samples(n_full)
-    small = dataclasses.replace(run, observables={k: np.asarray(v)[idx] for k, v in run.observables.items()})
+    small = at_samples(run, idx)
     extra: dict[str, Any] = {
         "golden_schema": GOLDEN_SCHEMA, "short": True, "n_full": n_full, "max_samples": MAX_SAMPLES,
         "reason": reason, "blessed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

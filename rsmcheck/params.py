@@ -77,7 +77,7 @@ class LinkParams:
         "(docs/exudyn.md §5.1); 1e5 (first axial mode 2.3–4.6 kHz, damped by the "
         "integrator) cuts that tenfold; 1e6 needs a Newton tolerance of 1e-2 N (the axial "
         "force's round-off EA·ε·|q|/le), which then shows in the momentum.  Below ~1e3 an "
-        "axial mode enters the band of interest (ENGINE-NOTES).",
+        "axial mode enters the band of interest (docs/exudyn.md).",
     )
 
     @property

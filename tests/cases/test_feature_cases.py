@@ -23,12 +23,6 @@ FEATURES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", "capt
 pytestmark = pytest.mark.engine_runs(*[(n, "reference", True, ()) for n in FEATURES])
 
 
-@pytest.fixture
-def short_run(run_pool):
-    """(case variant, EngineRun) of the --short variant, reference engine."""
-    return lambda name: (load_case(name).variant(True), run_pool.get(name, "reference"))
-
-
 @functools.lru_cache(maxsize=None)
 def engine_run(name: str):
     """(case variant, EngineRun, engine at the end, sensors at the start): for the tests that

@@ -33,13 +33,6 @@ from rsmcheck.store import Event, Phase, read_run
 FIG6 = pytest.mark.engine_runs(("p1_transport", "reference", True, ()), ("p1_rigid_gains", "reference", True, ()))
 
 
-@pytest.fixture
-def short_run(run_pool):
-    """(case variant, EngineRun) of the --short variant, reference engine, from the
-    session's run pool (tests/conftest.py: the runs the cross-check and the gate read)."""
-    return lambda name: (load_case(name).variant(True), run_pool.get(name, "reference"))
-
-
 @dataclass
 class Piece:
     """One phase cut out of the mission run: time from the phase start."""

@@ -216,7 +216,7 @@ def test_bias_forces_equal_lagrange_form(rsm, seed):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_planar_base_joint_gives_the_same_reference_quantities(seed):
-    """The T-mapping of ENGINE-NOTES (planar joint) against the identity chart (PX-PY-RZ)."""
+    """The T-mapping of the planar joint against the identity chart (PX-PY-RZ)."""
     a, b = PinocchioRSM(PARAMS, "pxpyrz"), PinocchioRSM(PARAMS, "planar")
     s = S.open_state(a, seed)
     c = S.closed_state(a, seed + 2)
