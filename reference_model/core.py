@@ -71,10 +71,11 @@ N_LINKS = 6
 #: The model's constant arrays.  Per link i and basis b (PP = 0, PF = 1), shape index a:
 #:   phi_bar[i, b, a] = ∫ρφ_a dξ,  phi_x = ∫ρξφ_a dξ,  m_ff[i, b] = ∫ρφφᵀ,  k_ff = ∫EIφ''φ''ᵀ,
 #:   phi_tip = φ_a(L),  slope_0 = φ_a'(0),  slope_L = φ_a'(L),  phi_g[i, b, g, a] = φ_a(x_g[g]);
-#:   nm[i] shapes of link i, starting at q[mo[i]]; mount[k] the root of arm k (base frame).
+#:   nm[i] shapes of link i, starting at q[mo[i]]; mount[k] the root of arm k (base frame);
+#:   order, first: elimination order and envelope of the mass matrix (`elimination_order`).
 ModelArrays = namedtuple("ModelArrays", [
     "nq", "sc", "nm", "mo", "phi_bar", "phi_x", "m_ff", "k_ff", "phi_tip", "slope_0", "slope_L",
-    "phi_g", "x_g", "w_g", "mount"])
+    "phi_g", "x_g", "w_g", "mount", "order", "first"])
 #: The switching part: basis[i] of each link, grasp_on[k], held points rho_G[k] (target frame).
 Switches = namedtuple("Switches", ["basis", "grasp_on", "rho_G"])
 
@@ -438,34 +439,52 @@ def _base_rows(Mg, f, q, rO, mB, aunif, u, sc):
 
 @njit(cache=True)
 def _link_rows(Mg, f, q, qd, kin, rO, aunif, m, basis):
-    """The links projected on q_m, eq. (A.6):  Jᵀ M J q̈ = Jᵀ (V + F_ext − M J̇ q̇)."""
+    """The links projected on q_m, eq. (A.6):  Jᵀ M J q̈ = Jᵀ (V + F_ext − M J̇ q̇).
+
+    J = ∂X_i/∂q_m is zero outside the base, the joints up to link i and the amplitudes of
+    the links up to it (its arm), and its amplitude rows are [0 | I] on the link's own
+    amplitudes (the last columns): the products are written out on that structure,
+        (M J)[r, c]   = Σ_{s<3} M[r, s] J[s, c] + M[r, 3 + c − c0]       (c ≥ c0),
+        (Jᵀ M J)[r, c] = Σ_{s<3} J[s, r] (M J)[s, c] + (M J)[3 + r − c0, c]  (r ≥ c0),
+    with c0 the first column of the own amplitudes.
+    """
     th, om, R, Rd, JR, Jth, cR = kin[0], kin[1], kin[2], kin[3], kin[4], kin[5], kin[6]
     for i in range(N_LINKS):
         n = m.nm[i]
         nx = 3 + n
         M, V = link_newton(i, q, qd, th, om, m, basis)
         Q = _field_link(i, q, th, R, rO, aunif, m, basis, M)
-        # J = ∂X_i/∂q_m is zero outside the base, the joints up to link i and the amplitudes
-        # of the links up to it (its arm): work on those columns only
         cols = _arm_columns(i, m)
         nc = cols.shape[0]
-        J = np.zeros((nx, nc))
+        c0 = nc - n  # the link's own amplitudes are the last columns
+        J3 = np.empty((3, nc))  # the frame rows of J: R (2) and θ
         for c in range(nc):
-            J[0, c] = JR[i, 0, cols[c]]
-            J[1, c] = JR[i, 1, cols[c]]
-            J[2, c] = Jth[i, cols[c]]
-        start = nc - n  # the link's own amplitudes are the last columns
-        for a in range(n):
-            J[3 + a, start + a] = 1.0
+            J3[0, c] = JR[i, 0, cols[c]]
+            J3[1, c] = JR[i, 1, cols[c]]
+            J3[2, c] = Jth[i, cols[c]]
         F = V + Q
         for r in range(nx):
             F[r] -= M[r, 0] * cR[i, 0] + M[r, 1] * cR[i, 1]  # − M J̇q̇ (only R has J̇q̇ ≠ 0)
-        MJ = J.T @ (M @ J)
-        JF = J.T @ F
-        for r in range(nc):
-            f[cols[r]] += JF[r]
+        MJ = np.empty((nx, nc))
+        for r in range(nx):
             for c in range(nc):
-                Mg[cols[r], cols[c]] += MJ[r, c]
+                v = M[r, 0] * J3[0, c] + M[r, 1] * J3[1, c] + M[r, 2] * J3[2, c]
+                if c >= c0:
+                    v += M[r, 3 + c - c0]
+                MJ[r, c] = v
+        for r in range(nc):
+            gr = cols[r]
+            jf = J3[0, r] * F[0] + J3[1, r] * F[1] + J3[2, r] * F[2]
+            if r >= c0:
+                jf += F[3 + r - c0]
+            f[gr] += jf
+            for c in range(r, nc):
+                v = J3[0, r] * MJ[0, c] + J3[1, r] * MJ[1, c] + J3[2, r] * MJ[2, c]
+                if r >= c0:
+                    v += MJ[3 + r - c0, c]
+                Mg[gr, cols[c]] += v
+                if c != r:
+                    Mg[cols[c], gr] += v
 
 
 @njit(cache=True)
@@ -642,42 +661,88 @@ def assemble(x, u, m, sw):
     return Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO
 
 
+def elimination_order(nq, nm, mo):
+    """Order of the rows of Mg for its Cholesky factor, and the envelope of each row.
+
+    Mg couples the base with both arms and each arm with itself, but never the two arms
+    with each other (a link's Newtonian coordinates depend on the base and its own arm
+    only, eq. A.6), and the target only with itself (eq. 3).  Eliminated in the order
+    arm 1 (joints, amplitudes), arm 2, base, target, the factor has no fill-in outside the
+    envelope `first[r]` ≤ column ≤ r: a quarter of the dense work at 4 shapes per link.
+    Returns (order, first): row r of the ordered matrix is row order[r] of Mg.
+    """
+    ny = nq + 3
+    order = np.empty(ny, dtype=np.int64)
+    first = np.empty(ny, dtype=np.int64)
+    r = 0
+    for k in range(2):
+        start = r
+        for s in range(3):
+            order[r] = 3 + 3 * k + s
+            r += 1
+        for s in range(3):
+            i = 3 * k + s
+            for a in range(nm[i]):
+                order[r] = mo[i] + a
+                r += 1
+        first[start:r] = start
+    for d in range(3):  # the base couples with everything before it
+        order[r] = d
+        first[r] = 0
+        r += 1
+    for d in range(3):  # the target is diagonal
+        order[r] = nq + d
+        first[r] = r
+        r += 1
+    return order, first
+
+
 @njit(cache=True)
-def _spd_solve(M, B):
-    """M⁻¹ B for the symmetric positive definite mass matrix M: Cholesky M = L Lᵀ, then the
-    two triangular solves, column by column."""
+def _spd_solve(M, B, order, first):
+    """M⁻¹ B for the symmetric positive definite mass matrix M: Cholesky L Lᵀ of M in the
+    elimination order of `elimination_order` (entries of L only inside the envelope), then
+    the two triangular solves, column by column."""
     n = M.shape[0]
     Lc = np.zeros((n, n))
     for j in range(n):
-        d = M[j, j]
-        for k in range(j):
+        oj = order[j]
+        fj = first[j]
+        d = M[oj, oj]
+        for k in range(fj, j):
             d -= Lc[j, k] * Lc[j, k]
         if d <= 0.0:
-            Lc[j, j] = np.nan  # not positive definite: the caller sees a non-finite state
-            return np.full(B.shape, np.nan)
-        Lc[j, j] = math.sqrt(d)
+            return np.full(B.shape, np.nan)  # not positive definite: the caller sees a non-finite state
+        Ljj = math.sqrt(d)
+        Lc[j, j] = Ljj
         for r in range(j + 1, n):
-            s = M[r, j]
-            for k in range(j):
+            fr = first[r]
+            if fr > j:
+                continue  # outside the envelope: L[r, j] = 0
+            s = M[order[r], oj]
+            for k in range(max(fr, fj), j):
                 s -= Lc[r, k] * Lc[j, k]
-            Lc[r, j] = s / Lc[j, j]
-    X = B.copy()
-    for col in range(X.shape[1]):
-        for r in range(n):  # L y = b
-            s = X[r, col]
-            for c in range(r):
-                s -= Lc[r, c] * X[c, col]
-            X[r, col] = s / Lc[r, r]
-        for r in range(n - 1, -1, -1):  # Lᵀ x = y
-            s = X[r, col]
+            Lc[r, j] = s / Ljj
+    X = np.empty_like(B)
+    y = np.empty(n)
+    for col in range(B.shape[1]):
+        for r in range(n):  # L y = P b
+            s = B[order[r], col]
+            for c in range(first[r], r):
+                s -= Lc[r, c] * y[c]
+            y[r] = s / Lc[r, r]
+        for r in range(n - 1, -1, -1):  # Lᵀ z = y,  x = Pᵀ z
+            s = y[r]
             for c in range(r + 1, n):
-                s -= Lc[c, r] * X[c, col]
-            X[r, col] = s / Lc[r, r]
+                if first[c] <= r:
+                    s -= Lc[c, r] * y[c]
+            y[r] = s / Lc[r, r]
+        for r in range(n):
+            X[order[r], col] = y[r]
     return X
 
 
 @njit(cache=True)
-def solve_constrained(Mg, f, G, Bs):
+def solve_constrained(Mg, f, G, Bs, m):
     """Eq. (11) and the accelerations of eq. (6).
 
     With W = −Gᵀ (R_cl is the force on the target; the end effector feels −R_cl):
@@ -689,7 +754,7 @@ def solve_constrained(Mg, f, G, Bs):
     rhs_[:, 0] = f
     for r in range(nc):
         rhs_[:, 1 + r] = G[r]
-    X = _spd_solve(Mg, rhs_)  # [Mg⁻¹ f, Mg⁻¹ Gᵀ]
+    X = _spd_solve(Mg, rhs_, m.order, m.first)  # [Mg⁻¹ f, Mg⁻¹ Gᵀ]
     if nc == 0:
         return np.ascontiguousarray(X[:, 0]), np.zeros(0)
     X0 = np.ascontiguousarray(X[:, 0])
@@ -706,7 +771,7 @@ def rhs(x, u, m, sw):
     ny = m.nq + 3
     ns = ny + 6
     Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO = assemble(x, u, m, sw)
-    ydd, Rcl = solve_constrained(Mg, f, G, Bs)
+    ydd, Rcl = solve_constrained(Mg, f, G, Bs, m)
     dx = np.empty_like(x)
     dx[0:ns] = x[ns:2 * ns]
     dx[ns:ns + ny] = ydd

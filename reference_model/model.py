@@ -190,13 +190,16 @@ class ReferenceModel:
         phi_tip[:, PP] = 0.0  # φ(L) = 0 exactly: the PP chord frame passes through both pins
         mount = np.array([p.geometry.mount_B(1), p.geometry.mount_B(2)], dtype=float)
         ref = self.bases[0][PP]
+        nm = np.array(self.layout.n_modes, dtype=np.int64)
+        mo = np.array(self.layout.mode_offset, dtype=np.int64)
+        order, first = core.elimination_order(self.layout.nq, nm, mo)
         return core.ModelArrays(
             nq=self.layout.nq, sc=sc,
-            nm=np.array(self.layout.n_modes, dtype=np.int64),
-            mo=np.array(self.layout.mode_offset, dtype=np.int64),
+            nm=nm, mo=mo,
             phi_bar=stack("phi_bar"), phi_x=stack("phi_x"), m_ff=stack("m_ff"), k_ff=stack("k_ff"),
             phi_tip=phi_tip, slope_0=stack("slope_0"), slope_L=stack("slope_L"),
-            phi_g=stack("phi_gauss"), x_g=ref.x_gauss.copy(), w_g=ref.w_gauss.copy(), mount=mount)
+            phi_g=stack("phi_gauss"), x_g=ref.x_gauss.copy(), w_g=ref.w_gauss.copy(), mount=mount,
+            order=order, first=first)
 
     @property
     def scalars(self) -> np.ndarray:
@@ -336,7 +339,7 @@ class ReferenceModel:
         sc[core.S_WC] = 0.0
         arrays = self.arrays._replace(sc=sc)
         Mg, f, G, _, _, Bs, *_ = core.assemble(x, u, arrays, self.switches(cfg))
-        ydd, Rc = core.solve_constrained(Mg, f, G, Bs)
+        ydd, Rc = core.solve_constrained(Mg, f, G, Bs, arrays)
         R_cl = np.zeros(4)
         row = 0
         for k in range(2):

@@ -152,7 +152,7 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
     q, qd = x[lay.q], x[lay.qd]
     XT = x[lay.target]
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
-    _, Rc = core.solve_constrained(Mg, f, A, Bs)
+    _, Rc = core.solve_constrained(Mg, f, A, Bs, model.arrays)
     th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = model.kinematics(q, qd, cfg)
     AB_T = rotation(q[2]).T
     rB = q[0:2]
