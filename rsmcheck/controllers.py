@@ -39,8 +39,8 @@ def saturate(inputs: Inputs, params: Params) -> Inputs:
     """Clip τ_m to ±τ_m,max (Table 4) and τ_B to ±τ_B,max (Table 3)."""
     tm = params.motor.torque_max
     tb = params.actuators.torque_max
-    return Inputs(tau_m=np.clip(inputs.tau_m, -tm, tm), tau_B=float(np.clip(inputs.tau_B, -tb, tb)),
-                  thrust=inputs.thrust)
+    return Inputs(tau_m=np.minimum(np.maximum(inputs.tau_m, -tm), tm),
+                  tau_B=min(max(float(inputs.tau_B), -tb), tb), thrust=inputs.thrust)
 
 
 def _rot(a: float) -> np.ndarray:
@@ -133,22 +133,30 @@ class Measured:
 
 
 def measure(s: Sensors, arms: tuple[ArmModel, ArmModel], feedback: str) -> Measured:
-    rb = s.base_pose_I[:2]
-    th = s.base_pose_I[2]
-    AT = _rot(th).T
+    """The sensors in the base frame about the base COM (plain float arithmetic: this runs
+    at every control sample).  With c, s of θ_B, a vector d of inertial axes is
+    Aᵀ(θ_B) d = (c d_x + s d_y, −s d_x + c d_y)."""
+    xb, yb, th = s.base_pose_I.tolist()
+    c, sn = math.cos(th), math.sin(th)
+    q = s.joint_angles.tolist()
     ee = np.empty((2, 3))
     for k in range(2):
-        q = s.joint_angles[3 * k:3 * k + 3]
+        qk = q[3 * k:3 * k + 3]
         if feedback == "kinematic":
-            ee[k] = arms[k].pose(q)
+            ee[k] = arms[k].pose(qk)
         else:
-            ee[k, :2] = AT @ (s.ee_pos_I[k] - rb)
-            ee[k, 2] = float(np.sum(q))
-    d = s.target_pose_I[:2] - rb
-    tgt = np.array([*(AT @ d), s.target_pose_I[2] - th])
-    om = s.base_rate_I[2]
-    dv = s.target_rate_I[:2] - s.base_rate_I[:2] - om * np.array([-d[1], d[0]])
-    rate = np.array([*(AT @ dv), s.target_rate_I[2] - om])
+            ex, ey = s.ee_pos_I[k].tolist()
+            dx, dy = ex - xb, ey - yb
+            ee[k] = (c * dx + sn * dy, -sn * dx + c * dy, qk[0] + qk[1] + qk[2])
+    xt, yt, tht = s.target_pose_I.tolist()
+    dx, dy = xt - xb, yt - yb
+    tgt = np.array([c * dx + sn * dy, -sn * dx + c * dy, tht - th])
+    vbx, vby, om = s.base_rate_I.tolist()
+    vtx, vty, omt = s.target_rate_I.tolist()
+    # relative velocity of the target COM seen from the turning base: ṙ_T − ṙ_B − θ̇_B S d
+    dvx = vtx - vbx + om * dy
+    dvy = vty - vby - om * dx
+    rate = np.array([c * dvx + sn * dvy, -sn * dvx + c * dvy, omt - om])
     return Measured(ee, tgt, rate)
 
 
@@ -378,14 +386,13 @@ class ProgrammeController:
 def retrograde_attitude(r, v, mu: float) -> tuple[float, float]:
     """Attitude whose +x points against the orbital velocity, and its rate (Kepler motion):
     θ = atan2(−v), θ̇ = (v × a)/|v|² with a = −μ r/|r|³."""
-    r = np.asarray(r, float)
-    v = np.asarray(v, float)
-    if not np.any(v):
+    rx, ry = (float(c) for c in r)
+    vx, vy = (float(c) for c in v)
+    if vx == 0.0 and vy == 0.0:
         return 0.0, 0.0
-    rn = float(np.hypot(*r))
-    a = -mu * r / rn**3
-    v2 = float(v @ v)
-    return math.atan2(-v[1], -v[0]), float(v[0] * a[1] - v[1] * a[0]) / v2
+    rn3 = math.hypot(rx, ry) ** 3
+    ax, ay = -mu * rx / rn3, -mu * ry / rn3
+    return math.atan2(-vy, -vx), (vx * ay - vy * ax) / (vx * vx + vy * vy)
 
 
 class ComAlignment:
