@@ -403,6 +403,14 @@ class ExudynEngine:
         self.mass_ancf = self.mesh.mass_matrix()
         self.pos_mid = self.mesh.pos_matrix(0.5 * L)
         self._rigid_gauss = links.gauss(8, -0.5 * L, 0.5 * L)  # a rigid link's field points
+        # the tidal field's quadrature on the flexible links, all links in one product
+        self._flex = [i for i, it in enumerate(self.links) if not it.rigid]
+        self._flex_coords = np.array([self.links[i].coords for i in self._flex], dtype=np.int64).reshape(
+            len(self._flex), self.mesh.nq)
+        _, ws_flex, self._field_D = self.mesh.sample(N_GAUSS_FIELD)
+        self._field_weights = self.params.link.rho_a * ws_flex  # ρA w_g [kg]
+        self._n_carrier = sum(3 if it.rigid else len(it.coords) for it in self.links) + 6
+        self._uniform: tuple[float, np.ndarray] | None = None  # (base mass, U) of the last build
         # ∫ρ r dξ of every link as one matrix on the stacked link coordinates
         self._link_coords = np.concatenate([it.coords for it in self.links])
         blocks = [np.hstack([self.params.link.mass * np.eye(2), np.zeros((2, 1))]) if it.rigid else self.first
@@ -660,25 +668,37 @@ class ExudynEngine:
                 or abs(held[1] - old[1]) > f * a.torque_max or abs(held[2] - old[2]) > f * a.thrust)
 
     def _advance_orbit(self, h: float, a_thr: np.ndarray) -> None:
-        if not self.orbit and not np.any(a_thr):
+        """O over one control interval: r̈_O = g(r_O) + a_thr (physics.md §5), classical RK4
+        on plain floats (a_thr, the interval's mean thrust acceleration, held)."""
+        ax, ay = float(a_thr[0]), float(a_thr[1])
+        if not self.orbit and ax == 0.0 and ay == 0.0:
             return
-        mu = self.params.orbit.mu
+        mu = self.params.orbit.mu if self.orbit else 0.0
 
-        def f(r, v):
-            a = a_thr + (fld.kepler(mu, r) if self.orbit else 0.0)
-            return v, a
+        def acc(x: float, y: float) -> tuple[float, float]:
+            r = math.sqrt(x * x + y * y)
+            k = mu / (r * r * r) if mu else 0.0
+            return ax - k * x, ay - k * y
 
-        r, v = self.r_O, self.v_O
-        k1 = f(r, v)
-        k2 = f(r + 0.5 * h * k1[0], v + 0.5 * h * k1[1])
-        k3 = f(r + 0.5 * h * k2[0], v + 0.5 * h * k2[1])
-        k4 = f(r + h * k3[0], v + h * k3[1])
-        self.r_O = r + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        self.v_O = v + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+        (x, y), (vx, vy) = self.r_O.tolist(), self.v_O.tolist()
+        a1 = acc(x, y)
+        a2 = acc(x + 0.5 * h * vx, y + 0.5 * h * vy)
+        v2 = (vx + 0.5 * h * a1[0], vy + 0.5 * h * a1[1])
+        a3 = acc(x + 0.5 * h * v2[0], y + 0.5 * h * v2[1])
+        v3 = (vx + 0.5 * h * a2[0], vy + 0.5 * h * a2[1])
+        a4 = acc(x + h * v3[0], y + h * v3[1])
+        v4 = (vx + h * a3[0], vy + h * a3[1])
+        self.r_O = np.array([x + h / 6 * (vx + 2 * v2[0] + 2 * v3[0] + v4[0]),
+                             y + h / 6 * (vy + 2 * v2[1] + 2 * v3[1] + v4[1])])
+        self.v_O = np.array([vx + h / 6 * (a1[0] + 2 * a2[0] + 2 * a3[0] + a4[0]),
+                             vy + h / 6 * (a1[1] + 2 * a2[1] + 2 * a3[1] + a4[1])])
 
     def _uniform_field_matrix(self) -> np.ndarray:
         """U with U a = generalised forces of a uniform acceleration field a on every mass
-        element (physics.md §5: M_X[:, R] a), carrier coordinates × 2."""
+        element (physics.md §5: M_X[:, R] a), carrier coordinates × 2; rebuilt only when the
+        base mass (propellant) has changed."""
+        if self._uniform is not None and self._uniform[0] == self._mass_base():
+            return self._uniform[1]
         p = self.params
         blocks = [np.array([[m, 0.0], [0.0, m], [0.0, 0.0]]) for m in (self._mass_base(), p.target.mass)]
         for it in self.links:
@@ -687,42 +707,47 @@ class ExudynEngine:
                 blocks.append(np.array([[p.link.mass, 0.0], [0.0, p.link.mass], [0.0, 0.0]]))
             else:
                 blocks.append(self.first.T)
-        return np.vstack(blocks)
+        self._uniform = (self._mass_base(), np.vstack(blocks))
+        return self._uniform[1]
 
     def _tidal_forces(self, q) -> np.ndarray:
         """Generalised forces of the exact tidal field at the current positions (zero without
         an orbit), carrier coordinates.  One evaluation of the field for every point (base,
-        target, the Gauss points of all links), then distributed on each body's coordinates."""
-        p = self.params
-        n_carrier = sum(3 if it.rigid else len(it.coords) for it in self.links) + 6
+        target, the Gauss points of all links), then distributed on each body's coordinates:
+        a flexible link's points are r_g = S(ξ_g) q_i and its forces Σ_g S(ξ_g)ᵀ ρA w_g Δg_g,
+        the same S for every link (one mesh), so all links go through one product each way."""
         if not self.orbit:
-            return np.zeros(n_carrier)
+            return np.zeros(self._n_carrier)
+        p = self.params
         mu = p.orbit.mu
+        D = self._field_D  # (2 n_g) × n_coords: rows x_g, y_g of every Gauss point
+        n_g = D.shape[0] // 2
+        flex_points = (q[self._flex_coords] @ D.T).reshape(-1, 2)  # link after link
         xs_rigid, ws_rigid = self._rigid_gauss
-        _, ws_flex, D = self.mesh.sample(N_GAUSS_FIELD)
-        points = [q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :]]
+        rigid_points = []
         for it in self.links:
-            qi = q[it.coords]
             if it.rigid:
-                points.append(qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])]))
-            else:
-                points.append((D @ qi).reshape(-1, 2))
-        g = fld.tidal(mu, self.r_O, np.vstack(points))
+                qi = q[it.coords]
+                rigid_points.append(qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])]))
+        g = fld.tidal(mu, self.r_O, np.vstack([q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :],
+                                               flex_points, *rigid_points]))
+        n_flex = len(self._flex)
+        g_flex = g[2:2 + n_flex * n_g].reshape(n_flex, n_g, 2)
+        # Σ_g Sᵀ(ξ_g) f_g: point forces at the Gauss points on each link's coordinates
+        q_flex = (g_flex * self._field_weights[None, :, None]).reshape(n_flex, 2 * n_g) @ D
         out = [np.array([self._mass_base() * g[0, 0], self._mass_base() * g[0, 1], 0.0]),
                np.array([p.target.mass * g[1, 0], p.target.mass * g[1, 1], 0.0])]
-        k = 2
-        for it, pts in zip(self.links, points[2:]):
-            n = pts.shape[0]
-            gi = g[k:k + n]
-            k += n
-            if it.rigid:
-                f = p.link.rho_a * ws_rigid[:, None] * gi
-                lever = pts - q[it.coords][:2]
-                out.append(np.array([f[:, 0].sum(), f[:, 1].sum(),
-                                     np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
-            else:
-                # Σ_g Sᵀ(ξ_g) f_g: point forces at the Gauss points on the link's coordinates
-                out.append(D.T @ (gi * (p.link.rho_a * ws_flex)[:, None]).reshape(-1))
+        k_flex, k = 0, 2 + n_flex * n_g
+        for it in self.links:
+            if not it.rigid:
+                out.append(q_flex[k_flex])
+                k_flex += 1
+                continue
+            pts = rigid_points.pop(0)
+            f = p.link.rho_a * ws_rigid[:, None] * g[k:k + len(pts)]
+            k += len(pts)
+            lever = pts - q[it.coords][:2]
+            out.append(np.array([f[:, 0].sum(), f[:, 1].sum(), np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
         return np.concatenate(out)
 
     # ---- exact state for phase chaining (rsmcheck.chain) -------------------------------

@@ -38,7 +38,3 @@ def tidal_potential(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
     h_exact = 1.0 - 1.0 / np.sqrt(1.0 + np.where(small, 0.0, q)) - 0.5 * q
     h = np.where(small, h_series, h_exact)
     return mu * (h + 0.5 * rho2 / r2) / np.sqrt(r2)
-
-
-def kepler(mu: float, r: np.ndarray) -> np.ndarray:
-    return -mu * r / float(np.linalg.norm(r)) ** 3
