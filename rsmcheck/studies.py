@@ -37,6 +37,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from rsmcheck.compare import SCALE_FLOORS, compare_runs
+from rsmcheck.engines import make_engine
 from rsmcheck.errors import exit_code
 from rsmcheck.observables import NAMES
 
@@ -49,7 +50,6 @@ RIGID_ZERO = ("link_deflection",)
 
 
 def _run(engine: str, case, duration: float, **options):
-    from rsmcheck.cli import make_engine
     from rsmcheck.runner import run
 
     t0 = time.monotonic()
@@ -67,12 +67,11 @@ def _errors(name: str, ref, other, names=OBSERVABLES) -> dict[str, dict[str, flo
 
 
 def _write(path: Path | None, doc: dict) -> None:
+    from rsmcheck.store import write_text
+
     if path is None:
         return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1, allow_nan=False, default=float))
-    tmp.replace(path)
+    write_text(path, json.dumps(doc, indent=1, allow_nan=False, default=float))
 
 
 #: reference tolerance of the rigid study: the reaction forces feel the rotor twist through
@@ -283,9 +282,13 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
         for n in ORBIT_OBSERVABLES:
             a = np.asarray(with_orbit.observables[n], float)
             b = np.asarray(without.observables[n], float)
-            if n == "base_pose_I":  # the attitude relative to the frame it is held in
-                a = a.copy()
-                a[:, 2] -= a[0, 2] + case.initial.base_rate[2] * np.asarray(with_orbit.observables["time"])
+            if n == "base_pose_I":
+                # displacement from the start: in orbit O is the system's initial COM, without
+                # it the origin of the case's inertial frame; the attitude relative to the
+                # frame it is held in (the orbital frame turns at n in orbit)
+                a = a - a[0]
+                b = b - b[0]
+                a[:, 2] -= case.initial.base_rate[2] * np.asarray(with_orbit.observables["time"])
             row[n] = float(np.max(np.abs(a - b)))
         doc["cases"][name] = {"duration": case.duration, "max_abs": row, "wall_s": [w1, w2],
                               "events": {"with": [(e.time, e.kind) for e in with_orbit.events if e.kind != "segment"],
