@@ -7,34 +7,79 @@ and the gate (tests/crosscheck/test_gate.py) read the same runs.  As soon as col
 finished every run the collected tests will need is submitted, in collection order; each
 test then waits only for its own runs.  A test declares them with
 `pytest.mark.engine_runs((case, engine, short, options), ...)`.
+
+A sequence case (the mission) is a job too: it runs through `rsmcheck.chain.run_case` into
+a folder of the session and comes back as a `SequenceRun` (the run, the file's attributes,
+the folder with its end states).  Jobs start longest first (the wall time each golden
+recorded, goldens/; a sequence: the sum of its phases'), so that no long run starts last
+while the other core has nothing left to do.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import shutil
+import tempfile
 from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 import pytest
 
 ENGINES = ("reference", "exudyn")
+ROOT = Path(__file__).resolve().parents[1]
 
 
-def _job(engine: str, case_name: str, short: bool, options: dict[str, Any]):
-    """One engine run in a worker process: (EngineRun, wall seconds)."""
+@dataclass
+class SequenceRun:
+    """A sequence case's run as `rsmcheck run` writes it: the engine's run over all phases,
+    the run file's root attributes, the folder with the file and its end states."""
+
+    run: Any
+    attrs: dict
+    out_dir: Path
+
+
+def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], workdir: str):
+    """One engine run in a worker process: (EngineRun or SequenceRun, wall seconds)."""
     import time
 
     from cases.loader import load_case
+    from rsmcheck.chain import run_case
     from rsmcheck.compare import _run_one
+    from rsmcheck.store import read_run
 
-    case = load_case(case_name).variant(short)
-    duration = options.pop("duration", None) or case.duration
+    case = load_case(case_name)
     t0 = time.monotonic()
     try:
+        if case.phases:
+            out = Path(workdir) / f"{case_name}.{engine}"
+            runs, attrs = read_run(run_case(case, [engine], short, out_dir=out))
+            return SequenceRun(runs[engine], attrs, out), time.monotonic() - t0
+        case = case.variant(short)
+        duration = options.pop("duration", None) or case.duration
         run = _run_one(engine, case, duration, options)
     except Exception as exc:  # noqa: BLE001 — not every exception pickles: send the text
         return None, f"{type(exc).__name__}: {exc}"
     return run, time.monotonic() - t0
+
+
+def expected_wall(case_name: str, engine: str) -> float:
+    """The wall time the case's golden recorded for `engine` [s] (0 without a golden); for a
+    sequence case the sum over its short phases.  Only orders the jobs."""
+    from cases.loader import load_case
+    from rsmcheck.gate import golden_path
+    from rsmcheck.store import read_run
+
+    try:
+        case = load_case(case_name)
+        if case.phases:
+            return sum(expected_wall(p, engine) for p in case.variant(True).phases)
+        path = golden_path(case_name, engine)
+        return float(read_run(path)[0][engine].solver.get("wall_s", 0.0)) if path.exists() else 0.0
+    except Exception:  # noqa: BLE001 — a case the tests themselves will report on
+        return 0.0
 
 
 class RunPool:
@@ -43,6 +88,7 @@ class RunPool:
     def __init__(self, workers: int = 2):
         self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
         self.futures: dict[tuple, Future] = {}
+        self.workdir = tempfile.mkdtemp(prefix="rsmcheck-runs-")
 
     @staticmethod
     def key(case: str, engine: str, short: bool = True, **options) -> tuple:
@@ -51,7 +97,7 @@ class RunPool:
     def submit(self, case: str, engine: str, short: bool = True, **options) -> Future:
         k = self.key(case, engine, short, **options)
         if k not in self.futures:
-            self.futures[k] = self.pool.submit(_job, engine, case, short, dict(options))
+            self.futures[k] = self.pool.submit(_job, engine, case, short, dict(options), self.workdir)
         return self.futures[k]
 
     def get(self, case: str, engine: str, short: bool = True, **options):
@@ -62,6 +108,7 @@ class RunPool:
 
     def close(self) -> None:
         self.pool.shutdown(wait=False, cancel_futures=True)
+        shutil.rmtree(self.workdir, ignore_errors=True)
 
 
 #: per test item: the runs it needs, [(case, engine, short, options)], registered by the
@@ -87,6 +134,7 @@ def pytest_collection_finish(session):
     jobs = _wanted(session.items)
     if jobs and not session.config.option.collectonly:
         pool = session.config.stash[POOL] = RunPool()
+        jobs.sort(key=lambda job: -expected_wall(job[0], job[1]))  # longest first (stable)
         for case, engine, short, options in jobs:
             pool.submit(case, engine, short, **dict(options))
 

@@ -15,7 +15,6 @@ import pytest
 
 from cases.loader import load_case
 from reference_model.engine import ReferenceEngine
-from rsmcheck.chain import run_case
 from rsmcheck.orbit import (
     burn_time,
     circular_state,
@@ -27,7 +26,7 @@ from rsmcheck.orbit import (
 )
 from rsmcheck.params import Params
 from rsmcheck.runner import run
-from rsmcheck.store import Event, Phase, read_run
+from rsmcheck.store import Event, Phase
 
 
 FIG6 = pytest.mark.engine_runs(("p1_transport", "reference", True, ()), ("p1_rigid_gains", "reference", True, ()))
@@ -42,13 +41,15 @@ class Piece:
     phases: list
 
 
+MISSION = pytest.mark.engine_runs(("mission", "reference", True, ()))
+
+
 @pytest.fixture(scope="module")
-def mission(tmp_path_factory):
-    """The short mission: p2 → p3 → p4 → p5, each from the previous end state; one file."""
-    out = tmp_path_factory.mktemp("mission")
-    path = run_case("mission", ["reference"], short=True, out_dir=out)
-    runs, attrs = read_run(path)
-    r = runs["reference"]
+def mission(run_pool):
+    """The short mission: p2 → p3 → p4 → p5, each from the previous end state; one file
+    (run by the session's run pool, tests/conftest.py, as `rsmcheck run mission --short`)."""
+    seq = run_pool.get("mission", "reference")
+    r, attrs, out = seq.run, seq.attrs, seq.out_dir
     pieces = {}
     top = [ph for ph in r.phases if ":" not in ph.name]
     t = r.observables["time"]
@@ -133,6 +134,7 @@ def test_p1_full_transport_turns_the_terminal_link_against_the_wrist_stop():
 
 
 # ---- Figs. 10–11 ----------------------------------------------------------------------
+@MISSION
 def test_p2_capture_reposition_release_and_regrasp_at_a_new_point(mission):
     pieces, attrs, out = mission
     r = pieces["p2_capture_regrasp"]
@@ -160,6 +162,7 @@ def test_p2_capture_reposition_release_and_regrasp_at_a_new_point(mission):
     assert o["target_pose_B"][-1] == pytest.approx([6.607, 0.1, 0.0], abs=2e-2)
 
 
+@MISSION
 def test_mission_short_chains_the_phases(mission):
     pieces, attrs, out = mission
     assert attrs["mission_phases"] == "p2_capture_regrasp,p3_com_alignment,p4_hohmann,p5_release"
@@ -179,6 +182,7 @@ def test_mission_short_chains_the_phases(mission):
 
 
 # ---- Fig. 12 --------------------------------------------------------------------------
+@MISSION
 def test_fig12_com_alignment_brings_the_com_onto_the_thrust_axis(mission):
     r = mission[0]["p3_com_alignment"]
     o = r.observables
@@ -193,6 +197,7 @@ def test_fig12_com_alignment_brings_the_com_onto_the_thrust_axis(mission):
 
 
 # ---- Figs. 13–15 ----------------------------------------------------------------------
+@MISSION
 def test_fig13_15_burns_with_the_configuration_frozen(mission):
     r = mission[0]["p4_hohmann"]
     o = r.observables
@@ -292,6 +297,7 @@ def test_p4_case_carries_the_finite_burn_schedule():
 
 
 # ---- Fig. 17 --------------------------------------------------------------------------
+@MISSION
 def test_fig17_target_drifts_away_after_release(mission):
     r = mission[0]["p5_release"]
     o = r.observables
