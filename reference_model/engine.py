@@ -13,7 +13,7 @@ from reference_model.model import STATIC_MODES_DEFAULT, Configuration, Reference
 from reference_model.observe import observe
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.errors import SimulationDiverged
-from rsmcheck.initial import InitialConfiguration, build_initial
+from rsmcheck.initial import InitialConfiguration, build_initial, orbit_start
 from rsmcheck.params import Params
 from rsmcheck.store import package_versions
 
@@ -137,6 +137,43 @@ class ReferenceEngine:
     def release(self, arm: int) -> dict[str, float]:
         self._work[0] = 0.0
         return switching.release(self.model, self.x, self.cfg, arm)
+
+    # ---- exact state for phase chaining (rsmcheck.chain) ----------------------------
+    def export_state(self) -> dict:
+        """Everything needed to continue this run in a new reference engine of the same model
+        size: the ODE state (with the modal amplitudes), link bases, grasp flags, held points."""
+        return {"engine": self.name, "x": self.x.copy(), "basis": self.cfg.basis.copy(),
+                "grasp_on": self.cfg.grasp_on.copy(), "rho_G": self.cfg.rho_G.copy(),
+                "n_modes": list(self.model.layout.n_modes), "orbit": bool(self.model.orbit)}
+
+    def import_state(self, exact: dict) -> None:
+        """Continue from `export_state()` of an engine of the same layout (else keep the rigid
+        start of the case, already built).  A case that enters an orbit the previous phase
+        did not have places O on its orbit at the system COM (rsmcheck.initial.place_on_orbit):
+        positions and velocities move by the COM's (the rigid part of the chained end state)."""
+        lay = self.model.layout
+        if exact.get("engine", self.name) != self.name or "x" not in exact \
+                or list(exact.get("n_modes", [])) != list(lay.n_modes):
+            return
+        x = np.array(exact["x"], float)
+        if x.shape != (lay.nx,):
+            return
+        case = self.case
+        if case.orbit and not np.any(x[lay.r_O]):
+            rigid = case.start_state
+            com = np.asarray(rigid["com_I"], float)
+            vcom = np.asarray(rigid["com_vel_I"], float)
+            if case.orbit_spec.centre_on_com:
+                x[0:2] -= com
+                x[lay.nq:lay.nq + 2] -= com
+                x[lay.ns:lay.ns + 2] -= vcom
+                x[lay.ns + lay.nq:lay.ns + lay.nq + 2] -= vcom
+            x[lay.r_O], x[lay.v_O] = orbit_start(case, self.params, float(x[2]))
+        self.x = x
+        self.cfg = Configuration(grasp_on=np.array(exact["grasp_on"], dtype=np.int64),
+                                 rho_G=np.array(exact["rho_G"], float),
+                                 basis=np.array(exact["basis"], dtype=np.int64))
+        self.t = 0.0
 
     def solver_settings(self) -> dict:
         names = {"dopri5": "Dormand-Prince 5(4), embedded error control",

@@ -14,9 +14,9 @@ Every run of a case stores its end state next to its HDF5 file, `DIR/CASE.end.js
   points; Exudyn: its absolute ODE2 coordinates and velocities with the beam deformation,
   bistop data, grasp flags, held points and bases).  An engine restores it when it can
   (same model size); otherwise it starts from the rigid part with undeformed links (a
-  reference with another number of modes, Exudyn with another element count).  An engine
-  may offer `export_state() -> dict` and `import_state(dict) -> None` (optional additions
-  to the Engine protocol) for its own exact state; ExudynEngine does.
+  reference with another number of modes, Exudyn with another element count).  Engines
+  give and take their exact state through `export_state() -> dict` and
+  `import_state(dict) -> None` (rsmcheck.engine.Engine); this module never looks inside.
 
 A case with `start_from = "P"` starts from the end state of P written by the same engine
 (and the same variant: full or --short) — with --short not the first phase of the short
@@ -43,10 +43,11 @@ import numpy as np
 
 from cases.loader import Case, load_case
 from rsmcheck.engine import Inputs
+from rsmcheck.engines import make_engine
 from rsmcheck.errors import InputError
 from rsmcheck.initial import orbit_start
 from rsmcheck.observables import NAMES
-from rsmcheck.store import EngineRun, Event, Phase, write_run
+from rsmcheck.store import EngineRun, Event, Phase, write_run, write_text
 
 FORMAT = "rsmcheck-endstate"
 FORMAT_VERSION = 2
@@ -88,15 +89,9 @@ def rigid_state(engine, params) -> dict[str, Any]:
 
 
 def exact_state(engine) -> dict[str, Any] | None:
-    """The engine's own full state, or None if it has no way to give it."""
+    """The engine's own full state (`export_state`), or None if it has no way to give it."""
     hook = getattr(engine, "export_state", None)
-    if callable(hook):
-        return hook()
-    if getattr(engine, "name", "") == "reference" and hasattr(engine, "x") and hasattr(engine, "cfg"):
-        lay = engine.model.layout
-        return {"x": engine.x, "basis": engine.cfg.basis, "grasp_on": engine.cfg.grasp_on,
-                "rho_G": engine.cfg.rho_G, "n_modes": list(lay.n_modes), "orbit": bool(engine.model.orbit)}
-    return None
+    return hook() if callable(hook) else None
 
 
 def end_state(engine, params) -> dict[str, Any]:
@@ -127,11 +122,7 @@ def save_end_states(path: str | Path, case: Case, short: bool, states: Mapping[s
     doc = {"format": FORMAT, "format_version": FORMAT_VERSION, "case": case.name,
            "case_hash": case.file_hash, "param_hash": case.params.digest(), "short": bool(short),
            "engines": _jsonable(dict(states))}
-    tmp = Path(str(path) + ".tmp")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp.write_text(json.dumps(doc, indent=1))
-    tmp.replace(path)
-    return path
+    return write_text(path, json.dumps(doc, indent=1))
 
 
 def load_end_state(path: str | Path, engine: str, short: bool, where: str) -> tuple[dict, str]:
@@ -169,50 +160,6 @@ def chained(case: Case, state: Mapping[str, Any]) -> Case:
     """`case` starting from `state` (an `end_state`)."""
     return dataclasses.replace(case, start_state=state["rigid"],
                                start_exact={"state": state.get("exact")})
-
-
-def make_engine(name: str, case: Case, **options):
-    """The engine `name` for `case`, restored to the case's exact start state if any."""
-    from rsmcheck.cli import make_engine as cli_make_engine
-
-    engine = cli_make_engine(name, case, **options)
-    exact = (case.start_exact or {}).get("state")
-    if case.start_state is not None and exact is not None:
-        hook = getattr(engine, "import_state", None)
-        if callable(hook):
-            hook(exact)
-        elif name == "reference":
-            _restore_reference(engine, exact, case)
-    return engine
-
-
-def _restore_reference(engine, exact: Mapping[str, Any], case: Case) -> None:
-    """Put the stored reference ODE state into a fresh reference engine (same layout)."""
-    from reference_model.model import Configuration
-
-    lay = engine.model.layout
-    if "x" not in exact or list(exact.get("n_modes", [])) != list(lay.n_modes):
-        return  # another model size: the rigid start already set by build_initial stands
-    x = np.array(exact["x"], float)
-    if x.shape != (lay.nx,):
-        return
-    rigid = case.start_state
-    if case.orbit and not np.any(x[lay.r_O]):
-        com = np.asarray(rigid["com_I"], float)
-        vcom = np.asarray(rigid["com_vel_I"], float)
-        if case.orbit_spec.centre_on_com:
-            x[0:2] -= com
-            x[lay.nq:lay.nq + 2] -= com
-            x[lay.ns:lay.ns + 2] -= vcom
-            x[lay.ns + lay.nq:lay.ns + lay.nq + 2] -= vcom
-        r, v = orbit_start(case, case.params, float(x[2]))
-        x[lay.r_O] = r
-        x[lay.v_O] = v
-    engine.x = x
-    engine.cfg = Configuration(grasp_on=np.array(exact["grasp_on"], dtype=np.int64),
-                               rho_G=np.array(exact["rho_G"], float),
-                               basis=np.array(exact["basis"], dtype=np.int64))
-    engine.t = 0.0
 
 
 # ---------------------------------------------------------------------------------------

@@ -12,9 +12,8 @@ import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
+from rsmcheck.engines import ENGINES
 from rsmcheck.errors import InputError, exit_code
-
-ENGINES = ("reference", "exudyn")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -37,21 +36,6 @@ def _cmd_cases(args: argparse.Namespace) -> int:
 
 def _engine_names(choice: str) -> list[str]:
     return list(ENGINES) if choice == "all" else [choice]
-
-
-def make_engine(name: str, case, **options):
-    """The engine object for `name` (imported lazily: Exudyn is heavy)."""
-    if name == "reference":
-        from reference_model.engine import ReferenceEngine
-
-        return ReferenceEngine(case, **options)
-    if name == "exudyn":
-        try:
-            from exudyn_model.engine import ExudynEngine
-        except ImportError as exc:
-            raise InputError("--engine", "exudyn", f"the Exudyn model is not available ({exc})") from None
-        return ExudynEngine(case, **options)
-    raise InputError("--engine", name, f"unknown engine (known: {', '.join(ENGINES)}, all)")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:

@@ -45,6 +45,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from rsmcheck.engines import make_engine
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
 
@@ -274,7 +275,6 @@ class CaseCheck:
 
 def _run_one(engine: str, case, duration: float, options: Mapping[str, Any]) -> EngineRun:
     """Run one engine on one case (also the target of a worker process)."""
-    from rsmcheck.cli import make_engine
     from rsmcheck.runner import run
 
     return run(make_engine(engine, case, **dict(options)), case, duration)

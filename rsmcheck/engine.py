@@ -84,3 +84,13 @@ class Engine(Protocol):
     def solver_settings(self) -> dict[str, float | int | str]: ...
 
     def versions(self) -> dict[str, str]: ...
+
+    def export_state(self) -> dict:
+        """The engine's own full state (with the link deformation), JSON-able arrays and
+        scalars, enough for a new engine of the same model to continue (rsmcheck.chain)."""
+        ...
+
+    def import_state(self, exact: dict) -> None:
+        """Continue from `export_state()` of an engine of the same model size; another
+        size (or another engine's state) leaves the rigid start the case built."""
+        ...

@@ -10,7 +10,8 @@ commit of rsmcheck, the versions of Python/numpy/h5py and the UTC creation time.
 
 Writing is atomic: the file is written as `<path>.tmp` in the same directory and renamed
 over `<path>` only once complete; on any failure the temporary file is removed and an
-existing `<path>` is left as it was.
+existing `<path>` is left as it was.  `write_text` and `write_json` do the same for the
+project's other result files (end states, studies, benchmarks, fault matrix, changelog).
 """
 
 from __future__ import annotations
@@ -29,6 +30,28 @@ import numpy as np
 
 from rsmcheck.errors import InputError
 from rsmcheck.observables import NAMES, check_observables
+
+def write_text(path: str | os.PathLike[str], text: str) -> Path:
+    """Write `text` to `path` atomically (`<path>.tmp`, then renamed; removed on failure)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(str(path) + ".tmp")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_json(path: str | os.PathLike[str], doc: Any) -> Path:
+    """`doc` as indented JSON, atomically; numpy scalars become floats, NaN is written as
+    NaN (JSON5/Python) rather than refused, so that a failed measurement stays visible."""
+    import json
+
+    return write_text(path, json.dumps(doc, indent=1, default=float))
+
 
 FORMAT = "rsmcheck-run"
 FORMAT_VERSION = 1

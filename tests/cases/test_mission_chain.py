@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from cases.loader import load_case
-from rsmcheck.chain import chained, end_state_path, load_end_state, make_engine, run_case
+from rsmcheck.chain import chained, end_state_path, load_end_state, run_case
+from rsmcheck.engines import make_engine
 from rsmcheck.errors import InputError
 from rsmcheck.initial import build_initial
 from rsmcheck.store import read_run

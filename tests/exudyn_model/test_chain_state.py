@@ -15,6 +15,7 @@ import pytest
 from cases.loader import load_case
 from rsmcheck import chain
 from rsmcheck.engine import Inputs
+from rsmcheck.engines import make_engine
 from rsmcheck.runner import run
 
 RELATIVE = ("target_pose_B", "ee1_pos_B", "ee2_pos_B", "capture_gap_B", "com_pos_B", "joint_angles",
@@ -23,12 +24,12 @@ RELATIVE = ("target_pose_B", "ee1_pos_B", "ee2_pos_B", "capture_gap_B", "com_pos
 
 def _continued(case_name: str, duration: float, edit=None):
     case = load_case(case_name).variant(True)
-    first = chain.make_engine("exudyn", case)
+    first = make_engine("exudyn", case)
     run(first, case, duration)
     state = chain.end_state(first, case.params)
     if edit:
         edit(state)
-    second = chain.make_engine("exudyn", chain.chained(case, state))
+    second = make_engine("exudyn", chain.chained(case, state))
     return first, second
 
 

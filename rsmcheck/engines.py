@@ -1,0 +1,38 @@
+"""The engine factory: an engine's name and a case → the engine object, started where the
+case says.
+
+Every command and study builds its engines here (`rsmcheck run`, `check`, `gate`, `bench`,
+the studies, the phase chain), so that an engine starts the same way everywhere: from the
+case's [initial] conditions, or — a case chained onto another's end state
+(rsmcheck.chain) — from that end state, the engine's own exact state when it can take it
+(`import_state`, same model size), else the rigid part every engine understands.
+"""
+
+from __future__ import annotations
+
+from cases.loader import Case
+from rsmcheck.errors import InputError
+
+#: the simulation engines, in the order reports list them
+ENGINES = ("reference", "exudyn")
+
+
+def make_engine(name: str, case: Case, **options):
+    """The engine `name` for `case` with constructor `options` (Exudyn imported lazily: it
+    is heavy, and a machine may lack it), restored to the case's exact start state if any."""
+    if name == "reference":
+        from reference_model.engine import ReferenceEngine
+
+        engine = ReferenceEngine(case, **options)
+    elif name == "exudyn":
+        try:
+            from exudyn_model.engine import ExudynEngine
+        except ImportError as exc:
+            raise InputError("--engine", "exudyn", f"the Exudyn model is not available ({exc})") from None
+        engine = ExudynEngine(case, **options)
+    else:
+        raise InputError("--engine", name, f"unknown engine (known: {', '.join(ENGINES)}, all)")
+    exact = (case.start_exact or {}).get("state")
+    if case.start_state is not None and exact is not None:
+        engine.import_state(exact)
+    return engine
