@@ -1,10 +1,20 @@
-"""`rsmcheck bench`: speed of each engine on the same work (SPEC §5).
+"""`rsmcheck bench`: how fast is each engine on the same work.
 
-Each (case, engine) run happens in a fresh Python process so that its peak resident memory
-is its own; wall time excludes the process start and numba's compile (a warm-up run of
-0.01 s of the same case comes first).  `rhs_us` times one right-hand side of the reference
-(closed chain, two modes per link) and one Pinocchio ABA call on the 10-coordinate
-open-chain rigid model, from Python: the scale of a compiled rigid-body step.
+Every (case, engine, variant) run happens in a fresh Python process, so that its peak
+resident memory is its own; its wall time excludes the process start, the imports and
+numba's compilation (a warm-up run of 0.01 s of the same case comes first).  The mission
+runs its phases chained, as `rsmcheck run mission` does.  Reported per run: simulated
+seconds, wall seconds, simulated seconds per wall second (× real time), peak memory; a run
+that fails is reported with its error and the others go on.
+
+`rhs_us`: the cost of one evaluation of the equations of motion,
+* `reference_compiled` — one reference right-hand side inside a compiled loop (what the
+  integrator pays per stage): the closed chain of `closed_squeeze`, default shapes;
+  `reference_rigid_compiled` the same with rigid links (no shapes);
+* `reference_call`, `reference_rigid_call` — the same called from Python (numba's
+  dispatch of the model's arrays adds ~20 µs), like
+* `pinocchio_aba` — one Pinocchio ABA call on the 10-coordinate rigid open chain
+  (base + arm 1), from Python: the scale of a compiled rigid-body step.
 
 Ratios are only meaningful within one run of this command (shared, noisy machines).
 """
@@ -13,95 +23,184 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
+import time
 import timeit
-from typing import Sequence
+from pathlib import Path
+from typing import Any, Sequence
+
+VARIANTS = ("short", "full")
 
 _CHILD = r"""
-import json, resource, sys, time
+import json, resource, sys, tempfile, time
 from cases.loader import load_case
-from rsmcheck.cli import make_engine
+from rsmcheck.chain import run_case
+from rsmcheck.engines import make_engine
 from rsmcheck.runner import run
 name, engine_name, short = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
 case = load_case(name)
-run(make_engine(engine_name, case), case, min(0.01, case.run_duration(short)))  # warm-up
-engine = make_engine(engine_name, case)
+first = load_case(case.variant(short).phases[0]) if case.phases else case
+run(make_engine(engine_name, first), first, min(0.01, first.run_duration(short)))  # warm-up
 t0 = time.perf_counter()
-result = run(engine, case, case.run_duration(short))
+if case.phases:
+    from rsmcheck.store import read_run
+    with tempfile.TemporaryDirectory() as out:
+        result = read_run(run_case(case, [engine_name], short, out_dir=out))[0][engine_name]
+else:
+    result = run(make_engine(engine_name, case), case, case.run_duration(short))
 wall = time.perf_counter() - t0
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-print(json.dumps({"case": name, "engine": engine_name, "wall_s": wall,
-                  "sim_s": float(result.observables["time"][-1]), "peak_mb": peak}))
+print(json.dumps({"case": name, "engine": engine_name, "variant": "short" if short else "full",
+                  "wall_s": wall, "sim_s": float(result.observables["time"][-1]), "peak_mb": peak}))
 """
 
 
-def rhs_timings() -> dict[str, float]:
-    """µs per call: reference RHS (closed chain, 2 modes/link), Pinocchio ABA (10 dof)."""
+def bench_run(case: str, engine: str, variant: str) -> dict[str, Any]:
+    """One run in a fresh process: {case, engine, variant, wall_s, sim_s, peak_mb} or, when
+    it fails, the same keys with NaN and `error` (the last line the process printed)."""
+    proc = subprocess.run([sys.executable, "-c", _CHILD, case, engine, "1" if variant == "short" else "0"],
+                          capture_output=True, text=True)
+    lines = proc.stdout.strip().splitlines()
+    if proc.returncode == 0 and lines:
+        try:
+            return json.loads(lines[-1])
+        except json.JSONDecodeError:
+            pass
+    err = proc.stderr.strip().splitlines()
+    return {"case": case, "engine": engine, "variant": variant, "wall_s": math.nan, "sim_s": math.nan,
+            "peak_mb": math.nan, "error": err[-1] if err else f"exit code {proc.returncode}, no output"}
+
+
+def rhs_timings(n: int = 2000) -> dict[str, Any]:
+    """µs per evaluation: reference RHS compiled and from Python (flexible and rigid),
+    Pinocchio ABA from Python (module doc)."""
     import numpy as np
+    from numba import njit
 
     from cases.loader import load_case
+    from reference_model import core
     from reference_model.engine import ReferenceEngine
 
-    engine = ReferenceEngine(load_case("closed_squeeze"))
-    args = engine.model.core_args(engine.cfg)
-    from reference_model import core
+    @njit
+    def _loop(x, u, m, sw, n):  # pragma: no cover - compiled
+        s = 0.0
+        for _ in range(n):
+            s += core.rhs(x, u, m, sw)[0]
+        return s
 
-    u = np.zeros(core.N_INPUTS)
-    core.rhs(engine.x, u, *args)
-    n = 2000
-    ref = timeit.timeit(lambda: core.rhs(engine.x, u, *args), number=n) / n * 1e6
-    out = {"reference": ref}
+    case = load_case("closed_squeeze")
+    out: dict[str, Any] = {}
+    for key, options in (("reference", {}), ("reference_rigid", {"n_modes": 0, "static_modes": False})):
+        engine = ReferenceEngine(case, **options)
+        m, sw = engine.model.core_args(engine.cfg)
+        u = np.zeros(core.N_INPUTS)
+        core.rhs(engine.x, u, m, sw)
+        out[f"{key}_call"] = min(timeit.repeat(lambda: core.rhs(engine.x, u, m, sw), number=n, repeat=3)) / n * 1e6
+        _loop(engine.x, u, m, sw, 10)
+        best = math.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            _loop(engine.x, u, m, sw, 10 * n)
+            best = min(best, (time.perf_counter() - t0) / (10 * n) * 1e6)
+        out[f"{key}_compiled"] = best
+        out[f"{key}_states"] = int(engine.model.layout.nx)
     try:
         import pinocchio as pin
 
         from pinocchio_check.model import build_model
         from rsmcheck.params import Params
 
-        pm = build_model(Params(), target="arm1")
-        model = pm.model
+        model = build_model(Params(), target="arm1").model
         data = model.createData()
-        q = pin.neutral(model)
-        v = np.zeros(model.nv)
-        tau = np.zeros(model.nv)
+        q, v, tau = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
         pin.aba(model, data, q, v, tau)
-        out["pinocchio_aba"] = timeit.timeit(lambda: pin.aba(model, data, q, v, tau), number=n) / n * 1e6
-    except Exception as exc:  # the report says why instead of a number
-        out["pinocchio_aba"] = float("nan")
-        out["pinocchio_error"] = str(exc)
+        out["pinocchio_aba"] = min(timeit.repeat(lambda: pin.aba(model, data, q, v, tau), number=n, repeat=3)) / n * 1e6
+        out["pinocchio_nv"] = int(model.nv)
+    except Exception as exc:  # noqa: BLE001 — reported instead of a number
+        out["pinocchio_aba"] = math.nan
+        out["pinocchio_error"] = f"{type(exc).__name__}: {exc}"
     return out
+
+
+def _speed(r: dict) -> float:
+    return r["sim_s"] / r["wall_s"] if r.get("wall_s", 0) and math.isfinite(r["wall_s"]) else math.nan
+
+
+def table(doc: dict) -> str:
+    """The runs side by side: one row per (case, variant), one column group per engine."""
+    engines = doc["engines"]
+    rows: dict[tuple[str, str], dict[str, dict]] = {}
+    for r in doc["runs"]:
+        rows.setdefault((r["case"], r["variant"]), {})[r["engine"]] = r
+    head = f"{'case':20s} {'variant':7s} {'sim s':>8s}"
+    for e in engines:
+        head += f" | {e + ' wall s':>16s} {'× real':>8s} {'MB':>6s}"
+    if len(engines) == 2:
+        head += f" | {engines[1] + '/' + engines[0]:>18s}"
+    lines = [head, "-" * len(head)]
+    for (case, variant), by in rows.items():
+        sim = next((r["sim_s"] for r in by.values() if math.isfinite(r["sim_s"])), math.nan)
+        line = f"{case:20s} {variant:7s} {sim:8.2f}"
+        for e in engines:
+            r = by.get(e)
+            if r is None or "error" in r:
+                line += f" | {'failed':>16s} {'':>8s} {'':>6s}"
+            else:
+                line += f" | {r['wall_s']:16.2f} {_speed(r):8.3f} {r['peak_mb']:6.0f}"
+        if len(engines) == 2 and all(e in by and "error" not in by[e] for e in engines):
+            line += f" | {by[engines[1]]['wall_s'] / by[engines[0]]['wall_s']:18.2f}"
+        lines.append(line)
+    rhs = doc.get("rhs_us", {})
+    if rhs:
+        lines.append("")
+        lines.append(f"RHS per call: reference {rhs['reference_compiled']:.1f} µs compiled "
+                     f"({rhs.get('reference_states', '?')} states), {rhs['reference_call']:.1f} µs from Python; "
+                     f"rigid reference (closed chain, {rhs.get('reference_rigid_states', '?')} states) "
+                     f"{rhs['reference_rigid_compiled']:.1f} µs compiled, {rhs['reference_rigid_call']:.1f} µs from "
+                     f"Python; Pinocchio ABA {rhs['pinocchio_aba']:.1f} µs from Python "
+                     f"({rhs.get('pinocchio_nv', '?')} dof open chain)"
+                     + (f" — rigid reference compiled / ABA = {rhs['reference_rigid_compiled'] / rhs['pinocchio_aba']:.1f}"
+                        if math.isfinite(rhs.get("pinocchio_aba", math.nan)) else f" — {rhs.get('pinocchio_error')}"))
+    failed = [r for r in doc["runs"] if "error" in r]
+    for r in failed:
+        lines.append(f"FAILED {r['case']} {r['engine']} {r['variant']}: {r['error']}")
+    return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     from cases.loader import list_cases
+    from rsmcheck.store import git_commit, write_json
 
-    parser = argparse.ArgumentParser(prog="rsmcheck bench")
-    parser.add_argument("--json", action="store_true")
-    parser.add_argument("--full", action="store_true", help="full-length cases (default: --short variants)")
-    parser.add_argument("--engine", default="reference", choices=["reference", "exudyn", "all"])
-    parser.add_argument("--cases", nargs="+", help="only these cases")
+    parser = argparse.ArgumentParser(prog="rsmcheck bench", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--json", action="store_true", help="one JSON object on stdout instead of the table")
+    parser.add_argument("--variant", default="short", choices=[*VARIANTS, "both"],
+                        help="the cases' --short variants (default), their full length, or both")
+    parser.add_argument("--full", action="store_true", help="same as --variant full")
+    parser.add_argument("--engine", default="all", choices=["reference", "exudyn", "all"])
+    parser.add_argument("--cases", nargs="+", help="only these cases (default: every case and the mission)")
+    parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_short.json)")
     args = parser.parse_args(argv)
     engines = ["reference", "exudyn"] if args.engine == "all" else [args.engine]
+    variants = ["full"] if args.full else (list(VARIANTS) if args.variant == "both" else [args.variant])
     names = args.cases or [p.stem for p in list_cases()]
+    started = time.monotonic()
     runs = []
     for name in names:
-        for engine in engines:
-            proc = subprocess.run([sys.executable, "-c", _CHILD, name, engine, "0" if args.full else "1"],
-                                  capture_output=True, text=True)
-            if proc.returncode != 0:
-                last = proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else f"exit {proc.returncode}"
-                runs.append({"case": name, "engine": engine, "wall_s": float("nan"), "sim_s": 0.0,
-                             "peak_mb": float("nan"), "error": last})
-            else:
-                runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
-            if not args.json:
-                r = runs[-1]
-                print(f"{r['case']:20s} {r['engine']:10s} sim {r['sim_s']:8.2f} s  wall {r['wall_s']:8.2f} s  "
-                      f"({r['wall_s'] / max(r['sim_s'], 1e-9):6.3f} wall/sim)  peak {r['peak_mb']:7.1f} MB"
-                      + (f"  ERROR {r['error']}" if "error" in r else ""), flush=True)
-    rhs = rhs_timings()
-    if args.json:
-        print(json.dumps({"runs": runs, "rhs_us": rhs}))
-    else:
-        print(f"rhs: reference {rhs['reference']:.1f} µs/call, pinocchio aba {rhs['pinocchio_aba']:.1f} µs/call")
+        for variant in variants:
+            for engine in engines:
+                r = bench_run(name, engine, variant)
+                runs.append(r)
+                state = f"ERROR {r['error']}" if "error" in r else \
+                    f"{r['sim_s']:.2f} s in {r['wall_s']:.2f} s ({_speed(r):.3f} × real time)"
+                print(f"[{time.monotonic() - started:7.0f} s] {name} {variant} {engine}: {state}",
+                      file=sys.stderr, flush=True)
+    commit, dirty = git_commit()
+    doc = {"command": "rsmcheck bench " + " ".join(argv if argv is not None else sys.argv[2:]),
+           "commit": commit, "dirty": dirty, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+           "engines": engines, "runs": runs, "rhs_us": rhs_timings()}
+    if args.out:
+        write_json(Path(args.out), doc)
+    print(json.dumps(doc, allow_nan=True) if args.json else table(doc))
     return 1 if any("error" in r for r in runs) else 0
