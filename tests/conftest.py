@@ -12,7 +12,8 @@ A sequence case (the mission) is a job too: it runs through `rsmcheck.chain.run_
 a folder of the session and comes back as a `SequenceRun` (the run, the file's attributes,
 the folder with its end states).  Jobs start longest first (the wall time each golden
 recorded, goldens/; a sequence: the sum of its phases'), so that no long run starts last
-while the other core has nothing left to do.
+while the other core has nothing left to do; the tests that read pool runs are collected
+last, so that the main process meanwhile runs everything else.
 """
 
 from __future__ import annotations
@@ -121,6 +122,13 @@ def _wanted(items) -> list[tuple]:
                 if job not in out:
                     out.append(job)
     return out
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """Tests that read pool runs go last (in their own order): while the pool works through
+    its queue, longest first, the main process runs everything that needs no pool run,
+    instead of waiting at the first test whose run is queued behind the long ones."""
+    items.sort(key=lambda item: item.get_closest_marker("engine_runs") is not None)
 
 
 def pytest_configure(config):
