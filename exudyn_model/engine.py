@@ -737,13 +737,13 @@ class ExudynEngine:
         q_flex = (g_flex * self._field_weights[None, :, None]).reshape(n_flex, 2 * n_g) @ D
         out = [np.array([self._mass_base() * g[0, 0], self._mass_base() * g[0, 1], 0.0]),
                np.array([p.target.mass * g[1, 0], p.target.mass * g[1, 1], 0.0])]
-        k_flex, k = 0, 2 + n_flex * n_g
+        flex_rows, rigid_pts = iter(q_flex), iter(rigid_points)
+        k = 2 + n_flex * n_g
         for it in self.links:
             if not it.rigid:
-                out.append(q_flex[k_flex])
-                k_flex += 1
+                out.append(next(flex_rows))
                 continue
-            pts = rigid_points.pop(0)
+            pts = next(rigid_pts)
             f = p.link.rho_a * ws_rigid[:, None] * g[k:k + len(pts)]
             k += len(pts)
             lever = pts - q[it.coords][:2]

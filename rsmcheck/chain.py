@@ -45,7 +45,6 @@ from cases.loader import Case, load_case
 from rsmcheck.engine import Inputs
 from rsmcheck.engines import make_engine
 from rsmcheck.errors import InputError
-from rsmcheck.initial import orbit_start
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun, Event, Phase, write_run, write_text
 

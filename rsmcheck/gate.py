@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import os
 import platform
 from dataclasses import dataclass, field
 from pathlib import Path

@@ -29,7 +29,6 @@ from typing import Any, Callable
 import pytest
 
 ENGINES = ("reference", "exudyn")
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @dataclass
