@@ -128,7 +128,7 @@ from rsmcheck.params import Params
 
 CASES_DIR = Path(__file__).resolve().parent
 
-#: observables a [compare] table may name (SPEC §4), without importing numpy-heavy modules
+#: observables a [compare] table may name (docs/physics.md §11), without importing numpy-heavy modules
 OBSERVABLE_NAMES = (
     "time", "base_pose_I", "target_pose_B", "ee1_pos_B", "ee2_pos_B", "ee2_speed",
     "capture_gap_B", "com_pos_B", "joint_angles", "joint_frame_angles", "wrist_angles",
@@ -892,7 +892,7 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
     for obs, item in v.items():
         k = f"{key}.{obs}"
         if obs not in OBSERVABLE_NAMES or obs == "time":
-            raise InputError(w, k, "not an observable of SPEC §4 (see rsmcheck.observables)")
+            raise InputError(w, k, "not an observable (docs/physics.md §11, rsmcheck.observables)")
         c = _table(w, k, item, {
             "tolerance": lambda kk, x: _number(w, kk, x, 0.0, lo_open=True),
             "why": lambda kk, x: _text(w, kk, x),

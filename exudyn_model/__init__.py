@@ -1,1 +1,1 @@
-"""The dual-arm flexible space robot built from Exudyn's own elements (SPEC §1)."""
+"""The dual-arm flexible space robot built from Exudyn's own elements (docs/exudyn.md)."""

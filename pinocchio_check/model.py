@@ -21,7 +21,7 @@ X_T = [x_T, y_T, θ_T] (3) for the target, a Newtonian body held by Lagrange mul
 R_cl (eq. 11).  R_cl = (R1, R2, R3, R4) is the force ON THE TARGET at grasp 1 and grasp 2,
 inertial components; the end effector feels −R.  Joint torques u_J act between parent
 and child (+u on the child, −u on the parent), the base torque τ_B on θ_B.  The rotors of
-eq. (2) are not part of this model: the reduced model (SPEC §3.5) writes each rotor on
+eq. (2) are not part of this model: the reduced model (docs/physics.md §3.4) writes each rotor on
 its own angle θ_m relative to the parent with no gyroscopic coupling to the carrier, so
 B_m never enters the arm's mass matrix or bias forces; a rotor acts on the arm only
 through the spring/damper torque u_J of eq. (5), which is an input here.  The wrist

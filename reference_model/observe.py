@@ -1,4 +1,4 @@
-"""Observables of SPEC §4 from a reference-model state (docs/physics.md §6).
+"""Observables (docs/physics.md §11) from a reference-model state.
 
 All positions are relative to the co-moving reference point O, inertial axes, unless the
 suffix says otherwise (`_B`: base frame about the base COM).
@@ -142,7 +142,7 @@ def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tupl
 
 def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: Configuration,
             capture_arm: int, capture_point_T: np.ndarray) -> dict[str, np.ndarray | float]:
-    """Every observable of SPEC §4 at one instant.
+    """Every observable (docs/physics.md §11) at one instant.
 
     capture_arm / capture_point_T: the arm whose gap `capture_gap_B` reports and its
     designated capture point (target frame, about the target COM).

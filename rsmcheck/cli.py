@@ -1,4 +1,4 @@
-"""The `rsmcheck` command line (SPEC §5).
+"""The `rsmcheck` command line (README, section "Command line").
 
 Exit codes: 0 all good, 1 a check failed, 2 bad input or usage (one line on stderr, no
 traceback).  A diverging simulation is reported in one line with time, phase and quantity

@@ -65,7 +65,7 @@ class Engine(Protocol):
     def sensors(self) -> Sensors: ...
 
     def observe(self, inputs: Inputs) -> dict[str, np.ndarray | float]:
-        """Every SPEC §4 observable at the current instant."""
+        """Every observable (docs/physics.md §11) at the current instant."""
         ...
 
     def advance(self, t_next: float, inputs: Inputs) -> None:

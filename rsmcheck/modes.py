@@ -148,5 +148,5 @@ def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n:
 
 
 def modes_report(n_modes=None, n_elements: int | None = None) -> dict[str, Any]:
-    """The JSON object of `rsmcheck modes --json` (SPEC §5)."""
+    """The JSON object of `rsmcheck modes --json` (README, command line)."""
     return {"links": link_rows(n_elements=n_elements), "arms": arm_rows(n_modes=n_modes, n_elements=n_elements)}

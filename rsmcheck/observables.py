@@ -1,14 +1,15 @@
-"""The observable schema (SPEC §4): what every engine writes, as data.
+"""The observable schema (docs/physics.md §11): what every engine writes, as data.
 
-Each observable is one row of SPEC §4: a name, the shape of one time sample, its unit and
-what it means.  An engine's result is a mapping name -> array whose first axis is the
-time sample; `check_observables` is the one place that decides whether such a mapping is
-complete and well formed (it is used by the HDF5 store before writing and after reading).
+Each observable is one row of the table in docs/physics.md §11 (generated from this
+module and tested against it): a name, the shape of one time sample, its unit and what it
+means.  An engine's result is a mapping name -> array whose first axis is the time sample;
+`check_observables` is the one place that decides whether such a mapping is complete and
+well formed (it is used by the HDF5 store before writing and after reading).
 
-Conventions (SPEC §4): SI units, radians.  Suffix `_B`: expressed in the base body frame,
-relative to the base COM.  Suffix `_I`: inertial axes (positions relative to the
-co-moving reference point).  Arm 1 comes before arm 2, and within an arm the joints and
-links go from the base outward.
+Conventions (docs/physics.md §11): SI units, radians.  Suffix `_B`: expressed in the base
+body frame, relative to the base COM.  Suffix `_I`: inertial axes (positions relative to
+the co-moving reference point).  Arm 1 comes before arm 2, and within an arm the joints
+and links go from the base outward.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ObservableSpec:
-    """One row of SPEC §4.  `shape` is the shape of one time sample (() for a scalar)."""
+    """One row of the observables table (docs/physics.md §11).  `shape` is the shape of one
+    time sample (() for a scalar)."""
 
     name: str
     shape: tuple[int, ...]
@@ -108,11 +110,11 @@ BY_NAME: dict[str, ObservableSpec] = {spec.name: spec for spec in OBSERVABLES}
 """The rows of `OBSERVABLES` by name."""
 
 NAMES: tuple[str, ...] = tuple(spec.name for spec in OBSERVABLES)
-"""Observable names in SPEC order (`time` first)."""
+"""Observable names in the schema's order (`time` first)."""
 
 
 def check_observables(data: Mapping[str, np.ndarray], where: str) -> int:
-    """Check that `data` holds exactly the observables of SPEC §4, well formed.
+    """Check that `data` holds exactly the observables of docs/physics.md §11, well formed.
 
     Every name of `OBSERVABLES` must be present and no other; each array is numeric with
     shape (n, *spec.shape) for one common number of samples n >= 1; every value is
@@ -127,7 +129,7 @@ def check_observables(data: Mapping[str, np.ndarray], where: str) -> int:
 
     unknown = sorted(set(data) - set(BY_NAME))
     if unknown:
-        raise fail(unknown[0], f"unknown name (SPEC §4 has no such observable; "
+        raise fail(unknown[0], f"unknown name (docs/physics.md §11 has no such observable; "
                                f"{len(unknown)} unknown: {', '.join(unknown)})")
     missing = [name for name in NAMES if name not in data]
     if missing:

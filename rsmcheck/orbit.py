@@ -1,4 +1,4 @@
-"""Orbit mechanics of the transfer phase (Sect. 4.1, 5.3; SPEC §2): Hohmann numbers, the
+"""Orbit mechanics of the transfer phase (Sect. 4.1, 5.3; docs/cases.md §3.4): Hohmann numbers, the
 finite-burn schedule, and an orbit-only propagation (reference point + mass depletion, no
 robot) that the p4_hohmann case and its tests are checked against.
 

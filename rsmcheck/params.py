@@ -1,6 +1,6 @@
 """The one parameter source of rsmcheck.
 
-Tables 1–4 of De Bonis et al. (2021), the beam data that follow from Table 2 (SPEC §2),
+Tables 1–4 of De Bonis et al. (2021), the beam data that follow from Table 2 (docs/physics.md §2),
 and every value the paper leaves open, each with the reason it was chosen.  Every
 engine builds its model from a `Params` object and from nothing else.
 
@@ -58,7 +58,7 @@ class LinkParams:
     f1_pp_hz: float = _p(
         30.16,
         "Table 2, first pinned-pinned frequency; the bending stiffness EI is derived from it "
-        "(SPEC §2), every other Table 2 value is then a check.",
+        "(docs/physics.md §2), every other Table 2 value is then a check.",
     )
     damping_ratio: float = _p(
         0.01,
@@ -82,7 +82,7 @@ class LinkParams:
 
     @property
     def rho_a(self) -> float:
-        """Mass per unit length ρA = m/L [kg/m] (SPEC §2: 24.327 kg/m)."""
+        """Mass per unit length ρA = m/L [kg/m] (docs/physics.md §2: 24.327 kg/m)."""
         return self.mass / self.length
 
     @property
@@ -98,7 +98,7 @@ class LinkParams:
 
     @property
     def inertia_extra(self) -> float:
-        """Rotary inertia beyond the slender beam's mL²/12 [kg·m²] (SPEC §2: 0.388).
+        """Rotary inertia beyond the slender beam's mL²/12 [kg·m²] (docs/physics.md §2.3: 0.388).
 
         Placed on the rotation of the link frame only (docs/physics.md §2.3).
         """
@@ -130,8 +130,8 @@ class BaseActuatorParams:
 class OrbitParams:
     """Equatorial circular orbits of Sect. 4.1."""
 
-    mu: float = _p(3.986004418e14, "Earth GM (SPEC §2).")
-    earth_radius: float = _p(6378137.0, "Equatorial radius (SPEC §2).")
+    mu: float = _p(3.986004418e14, "Earth GM, WGS 84 (docs/physics.md §5).")
+    earth_radius: float = _p(6378137.0, "Equatorial radius, WGS 84 (docs/physics.md §5).")
     altitude_initial: float = _p(700.0e3, "Sect. 4.1.")
     altitude_final: float = _p(300.0e3, "Sect. 4.1.")
 

@@ -1,4 +1,4 @@
-"""The feature cases of SPEC §5, run in their --short variant through the reference engine:
+"""The feature cases of docs/cases.md §4, run in their --short variant through the reference engine:
 each shows the mechanism it isolates (docs/cases.md)."""
 
 from __future__ import annotations

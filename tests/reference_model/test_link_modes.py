@@ -1,4 +1,4 @@
-"""Table 2 of the paper and the beam data of SPEC §2, through the model's own matrices.
+"""Table 2 of the paper and the beam data of docs/physics.md §2, through the model's own matrices.
 
 The frequencies are not read from `beam_modes.omega` (that is ω = β² sqrt(EI/ρA), the
 formula the data were derived with).  They come from the floating-frame mass matrix that
@@ -117,8 +117,8 @@ def _half_unit(printed: str) -> float:
         ("uniform beam mL^2/12", lambda p: p.link.mass * p.link.length**2 / 12, "6.842"),
     ],
 )
-def test_spec_derived_numbers(name, value, printed):
-    """SPEC §2's derived numbers, to the digits printed there (half a unit of the last)."""
+def test_derived_numbers_as_printed(name, value, printed):
+    """The derived numbers of docs/physics.md §2, to the digits printed there (half a unit of the last)."""
     got = value(Params())
     assert abs(got - float(printed)) <= _half_unit(printed), (name, got, printed)
 

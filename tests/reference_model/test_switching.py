@@ -1,4 +1,4 @@
-"""Basis switch, capture and release (docs/physics.md §4.2, §4.4; SPEC §3.3).
+"""Basis switch, capture and release (docs/physics.md §4.2, §4.4).
 
 Material points are evaluated here from the frame and the mode shapes, independently of
 `switching`: r(ξ) = R + A(θ)(ξ, w(ξ)), ṙ(ξ) = Ṙ + θ̇ A S (ξ, w) + A e_y ẇ(ξ), at many ξ

@@ -1,4 +1,4 @@
-"""The command line (SPEC §5): bad input exits 2 with exactly one line on stderr naming the
+"""The command line (README, "Command line"): bad input exits 2 with exactly one line on stderr naming the
 file and the field, no traceback and nothing written; `cases` lists the cases; `run`
 writes a readable HDF5 file with every observable."""
 

@@ -1,5 +1,5 @@
 """rsmcheck.compare: the metrics of the [compare] tables, margins, the relative
-differences with their floors, and the `check` command's exit codes and JSON (SPEC §5)."""
+differences with their floors, and the `check` command's exit codes and JSON (README, command line)."""
 
 from __future__ import annotations
 
@@ -228,7 +228,7 @@ def test_check_bad_input_exits_2(argv, field, capsys):
 @pytest.mark.crosscheck
 def test_check_runs_both_engines():
     """A real (serial) check of the shortest case, flex_arm_step cut to its first 0.1 s:
-    one row per [compare] entry with the SPEC §5 keys (pass/fail: tests/crosscheck)."""
+    one row per [compare] entry with the keys README's command line lists (pass/fail: tests/crosscheck)."""
     import rsmcheck.compare as cmp
 
     case = load_case("flex_arm_step").variant(True)

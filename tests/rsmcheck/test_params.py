@@ -46,11 +46,12 @@ def test_geometry_helpers():
     c1, o = g.grasp1_centre_T, g.target_com_offset_T
     assert g.grasp_T(1) == (c1[0] - o[0], c1[1] - o[1])
     assert g.mount_B(1) == g.mount_arm1_B and g.mount_B(2) == g.mount_arm2_B
-    assert o != (0.0, 0.0)  # SPEC §2: the target COM is offset from the centre
+    assert o != (0.0, 0.0)  # docs/cases.md §2: the target COM is offset from the centre
 
 
 def test_every_value_has_its_reason():
-    """SPEC §2: each value is set once, in the parameter source, with a sentence on why."""
+    """docs/physics.md (introduction): each value is set once, in the parameter source, with a
+    sentence on why."""
     p = Params()
     for section in dataclasses.fields(p):
         for f in dataclasses.fields(getattr(p, section.name)):
