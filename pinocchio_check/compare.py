@@ -33,7 +33,6 @@ rows, told apart by the extra keys "holding" and "n_modes".
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from dataclasses import dataclass
@@ -276,7 +275,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     for n_modes in args.modes:
         rows += run_checks(n_states=args.states, first_seed=args.seed, n_modes=n_modes, open_arms=(1, 2))
     if args.json:
-        print(json.dumps({"checks": rows}))
+        from rsmcheck.store import dumps_json
+
+        print(dumps_json({"checks": rows}, indent=None))  # strict JSON: no NaN/Infinity
     else:
         print(format_table(rows))
     return 0 if all(r["pass"] for r in rows) else 1

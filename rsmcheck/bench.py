@@ -5,7 +5,8 @@ resident memory is its own; its wall time excludes the process start, the import
 numba's compilation (a warm-up run of 0.01 s of the same case comes first).  The mission
 runs its phases chained, as `rsmcheck run mission` does.  Reported per run: simulated
 seconds, wall seconds, simulated seconds per wall second (× real time), peak memory; a run
-that fails is reported with its error and the others go on.
+that fails is reported with its error and the others go on (in the JSON, `--json` and
+`--out`, its numbers are null: the document is strict JSON, `store.dumps_json`).
 
 `rhs_us`: the cost of one evaluation of the equations of motion,
 * `reference_compiled` — one reference right-hand side inside a compiled loop (what the
@@ -28,7 +29,6 @@ import subprocess
 import sys
 import time
 import timeit
-from pathlib import Path
 from typing import Any, Sequence
 
 VARIANTS = ("short", "full")
@@ -170,8 +170,8 @@ def table(doc: dict) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from cases.loader import list_cases
-    from rsmcheck.store import git_commit, write_json
+    from cases.loader import list_cases, load_case
+    from rsmcheck.store import dumps_json, git_commit, output_file, write_json
 
     parser = argparse.ArgumentParser(prog="rsmcheck bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout instead of the table")
@@ -182,9 +182,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--cases", nargs="+", help="only these cases (default: every case and the mission)")
     parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_short.json)")
     args = parser.parse_args(argv)
+    out = output_file(args.out, "--out") if args.out else None  # before an hour of runs, not after
     engines = ["reference", "exudyn"] if args.engine == "all" else [args.engine]
     variants = ["full"] if args.full else (list(VARIANTS) if args.variant == "both" else [args.variant])
     names = args.cases or [p.stem for p in list_cases()]
+    for name in names:  # a misspelt case is a bad input (exit 2), not a failed run
+        load_case(name)
     started = time.monotonic()
     runs = []
     for name in names:
@@ -200,7 +203,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     doc = {"command": "rsmcheck bench " + " ".join(argv if argv is not None else sys.argv[2:]),
            "commit": commit, "dirty": dirty, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
            "engines": engines, "runs": runs, "rhs_us": rhs_timings()}
-    if args.out:
-        write_json(Path(args.out), doc)
-    print(json.dumps(doc, allow_nan=True) if args.json else table(doc))
+    if out is not None:
+        write_json(out, doc)
+    print(dumps_json(doc, indent=None) if args.json else table(doc))
     return 1 if any("error" in r for r in runs) else 0

@@ -1,8 +1,10 @@
 """The `rsmcheck` command line (README, section "Command line").
 
 Exit codes: 0 all good, 1 a check failed, 2 bad input or usage (one line on stderr, no
-traceback).  A diverging simulation is reported in one line with time, phase and quantity
-and exits 1.
+traceback; output paths are checked before anything runs).  A diverging simulation is
+reported in one line with time, phase and quantity and exits 1.  A reader of the standard
+output that goes away (`rsmcheck cases | head -1`) ends the command quietly
+(`errors.exit_code`).  Every `--json` document is strict JSON (`store.dumps_json`).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from rsmcheck.engines import ENGINES
-from rsmcheck.errors import InputError, exit_code
+from rsmcheck.errors import InputError, exit_code, flush_stdout
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,9 +44,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from cases.loader import load_case
     from rsmcheck.chain import run_case
     from rsmcheck.runner import terminal_progress
+    from rsmcheck.store import output_dir
 
+    out = output_dir(args.out, "--out")  # before anything runs: an existing file there is a bad input
     cases = [load_case(name) for name in args.case]  # validate every case before running any
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for case in cases:
         path = run_case(case, _engine_names(args.engine), args.short, out,
@@ -98,12 +101,11 @@ def _fmt(x: float) -> str:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    import json
-
     from cases.loader import load_case
     from rsmcheck.compare import check_case
-    from rsmcheck.store import write_run
+    from rsmcheck.store import dumps_json, output_dir, write_run
 
+    out = output_dir(args.out, "--out") if args.out else None
     cases = [load_case(name) for name in args.case]  # validate every case before running any
     options = {"reference": _engine_options(args.reference, "reference"),
                "exudyn": _engine_options(args.exudyn, "exudyn")}
@@ -111,8 +113,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     for case in cases:
         res = check_case(case, args.short, options, parallel=not args.serial)
         results.append(res)
-        if args.out and res.runs:
-            out = Path(args.out)
+        if out is not None and res.runs:
             out.mkdir(parents=True, exist_ok=True)
             write_run(out / f"{case.name}.h5", res.runs, case_name=case.name, case_hash=case.file_hash,
                       param_hash=case.params.digest(), extra_attrs={"short": bool(args.short)})
@@ -138,7 +139,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
                "runs": [{"case": res.case, "duration_s": res.duration, "wall_s": res.wall_s}
                         for res in results if not res.skipped],
                "options": options, "short": bool(args.short)}
-        print(json.dumps(doc, indent=1))
+        print(dumps_json(doc))
     else:
         print(f"{len(rows) - len(failed)} of {len(rows)} comparisons pass"
               + (f"; {len(skipped)} case(s) not checked (no [compare] table)" if skipped else ""))
@@ -149,14 +150,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
-    import json
-
     from rsmcheck.modes import arm_rows, link_rows
+    from rsmcheck.store import dumps_json
 
     links = link_rows(n_elements=args.elements)
     arms = arm_rows(n_modes=args.modes, n_elements=args.elements)
     if args.json:
-        print(json.dumps({"links": links, "arms": arms}, indent=1))
+        print(dumps_json({"links": links, "arms": arms}))
         return 0
     print(f"Link eigenfrequencies [Hz] (Exudyn: {links[0]['exudyn_elements']} ANCF elements per link)")
     print(f"  {'basis':5s} {'mode':>4s} {'Table 2':>9s} {'analytic':>10s} {'reference':>10s} {'Exudyn':>10s}"
@@ -204,15 +204,14 @@ def _progress(text: str) -> None:
 
 
 def _cmd_gate(args: argparse.Namespace) -> int:
-    import json
-
     from rsmcheck.gate import gate, tolerance_table
+    from rsmcheck.store import dumps_json
 
     cases = _gate_cases(args.case)
     if args.tolerances:
         rows = tolerance_table(cases, _engine_names(args.engine), Path(args.goldens))
         if args.json:
-            print(json.dumps({"tolerances": rows}, indent=1))
+            print(dumps_json({"tolerances": rows}))
             return 0
         print(f"{'case':20s} {'engine':9s} {'observable':20s} {'gate tol':>10s} {'measured':>10s} {'|value|max':>10s}")
         for r in rows:
@@ -221,7 +220,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
         return 0
     results = gate(cases, _engine_names(args.engine), Path(args.goldens), None if args.json else _progress)
     if args.json:
-        print(json.dumps({"gate": [r.as_dict() for r in results]}, indent=1))
+        print(dumps_json({"gate": [r.as_dict() for r in results]}))
     else:
         for r in results:
             head = f"{r.case} / {r.engine}: "
@@ -242,9 +241,11 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 def _cmd_bless(args: argparse.Namespace) -> int:
     from rsmcheck.gate import CHANGELOG, bless
+    from rsmcheck.store import output_dir
 
     if not args.reason or not args.reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason: what changed and why the new results are right")
+    output_dir(args.goldens, "--goldens")
     cases = _gate_cases(args.case)
     entries = bless(cases, _engine_names(args.engine), args.reason, Path(args.goldens), _progress)
     for case, engine, what in entries:
@@ -322,13 +323,24 @@ def build_parser() -> argparse.ArgumentParser:
 DELEGATED = {"pinocchio", "bench"}
 
 
+#: commands that only list something (also `gate --tolerances`): cut short by a reader that
+#: went away (`| head`), they exit 0; every other command exits 1 then (its work was not all
+#: done or not all shown, so "all good" cannot be claimed)
+LISTINGS = {"cases", "modes"}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in DELEGATED:
         args = argparse.Namespace(command=argv[0], rest=argv[1:])
     else:
-        args = build_parser().parse_args(argv)
-    return exit_code("rsmcheck", lambda: COMMANDS[args.command](args))
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit:  # --help (0) or a usage error (2): the help may meet a closed pipe
+            flush_stdout()
+            raise
+    return exit_code("rsmcheck", lambda: COMMANDS[args.command](args),
+                     cut_short=0 if args.command in LISTINGS or getattr(args, "tolerances", False) else 1)
 
 
 if __name__ == "__main__":

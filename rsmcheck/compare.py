@@ -48,6 +48,7 @@ import numpy as np
 from rsmcheck.engines import make_engine
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
+from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
 
 #: metrics a [compare] entry may ask for (cases.loader.METRICS names the same ones)
 METRICS = ("max_abs", "rms", "final", "growth")
@@ -227,15 +228,6 @@ class Check(_Verdict):
             return ""
         at = ", ".join(f"t = {ts:.6g} s: {e:.3g}" for ts, e in self.at_switches)
         return f"not compared at the constraint switch ({at}): one-sided limits, docs/physics.md §4.2"
-
-
-def _finite(x: float) -> float | str | None:
-    """JSON has no inf/NaN: inf → "inf", NaN → null."""
-    if math.isnan(x):
-        return None
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return x
 
 
 def check_runs(case, reference: EngineRun, other: EngineRun) -> list[Check]:

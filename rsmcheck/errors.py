@@ -8,6 +8,7 @@ finite or bounded; it carries the time, the phase and the quantity that blew up.
 
 from __future__ import annotations
 
+import os
 import sys
 from typing import Callable
 
@@ -44,11 +45,42 @@ class SimulationDiverged(RuntimeError):
         return (type(self), (self.engine, self.time, self.phase, self.quantity, self.value))
 
 
-def exit_code(prog: str, action: Callable[[], int]) -> int:
-    """Run a command's `action` and return its exit code; a bad input is one line on stderr
-    and 2, a diverged simulation one line and 1, an interrupt 130 (no traceback)."""
+def quiet_stdout() -> None:
+    """After a broken pipe: point the standard output (and error) at the null device, so
+    that what is still buffered and the interpreter's last flush at exit cannot fail
+    again ("Exception ignored ... BrokenPipeError", exit status 120).  The Python
+    documentation's recipe (signal module, note on SIGPIPE)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            os.dup2(devnull, stream.fileno())
+        except (OSError, ValueError, AttributeError):  # no file descriptor (a test's capture)
+            pass
+    os.close(devnull)
+
+
+def flush_stdout() -> bool:
+    """Flush the standard output; False (and `quiet_stdout`) if its reader went away."""
     try:
-        return action()
+        sys.stdout.flush()
+        return True
+    except BrokenPipeError:
+        quiet_stdout()
+        return False
+
+
+def exit_code(prog: str, action: Callable[[], int], cut_short: int = 1) -> int:
+    """Run a command's `action` and return its exit code; a bad input is one line on stderr
+    and 2, a diverged simulation one line and 1, an interrupt 130 (no traceback).
+
+    When the reader of the standard output goes away (`rsmcheck cases | head -1`) the
+    command ends quietly: nothing on stderr, the command's own code if it had finished,
+    else `cut_short` (1: its work was not all done and not all shown; 0 for a listing)."""
+    code: int | None = None
+    try:
+        code = action()
+        sys.stdout.flush()  # a reader that left shows here when the output was buffered
+        return code
     except InputError as exc:
         sys.stderr.write(f"{prog}: {exc}\n")
         return 2
@@ -58,6 +90,9 @@ def exit_code(prog: str, action: Callable[[], int]) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{prog}: interrupted\n")
         return 130
-    except BrokenPipeError:  # the reader went away (`rsmcheck … | head`): not an error of ours
-        sys.stderr.close()
-        return 0
+    except BrokenPipeError:  # the reader went away: not an error of ours
+        quiet_stdout()
+        return code if code is not None else cut_short
+    except SystemExit:  # a command's own argument parser: --help, or a usage error
+        flush_stdout()
+        raise

@@ -181,11 +181,11 @@ def main(argv=None) -> int:
     tree = make_copy(ROOT, Path(args.tree))
     print(f"fault injection: {len(faults)} faults on a copy in {tree}; cases {', '.join(CASES)}", flush=True)
     results = [run_fault(f, tree, lambda s: print(s, flush=True)) for f in faults]
-    from rsmcheck.store import git_commit, write_text
+    from rsmcheck.store import git_commit, write_json
 
     doc = {"cases": list(CASES), "pinocchio_states": PINOCCHIO_STATES, "commit": git_commit()[0],
            "faults": results}
-    out = write_text(Path(args.out), json.dumps(doc, indent=1))
+    out = write_json(Path(args.out), doc)
     missed = [r["name"] for r in results if r["layer"] != "none" and not r["caught_by"]]
     false = [r["name"] for r in results if r["layer"] == "none" and r["caught_by"]]
     print(f"wrote {out}: {len(results) - len(missed) - len(false)} of {len(results)} as expected"

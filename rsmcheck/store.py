@@ -12,11 +12,14 @@ Writing is atomic: the file is written as `<path>.tmp` in the same directory and
 over `<path>` only once complete; on any failure the temporary file is removed and an
 existing `<path>` is left as it was.  `write_text` and `write_json` do the same for the
 project's other result files (end states, studies, benchmarks, fault matrix, changelog).
+`dumps_json` is the one JSON writer: strict JSON, NaN as null and ±inf as "inf"/"-inf".
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import json
+import math
 import os
 import platform
 import subprocess
@@ -45,12 +48,88 @@ def write_text(path: str | os.PathLike[str], text: str) -> Path:
     return path
 
 
-def write_json(path: str | os.PathLike[str], doc: Any) -> Path:
-    """`doc` as indented JSON, atomically; numpy scalars become floats, NaN is written as
-    NaN (JSON5/Python) rather than refused, so that a failed measurement stays visible."""
-    import json
+def _writable_folder(path: Path, target: Path, field: str) -> None:
+    """InputError unless the nearest existing folder at or above `path` is a directory this
+    process can create entries in (`target`, the path the user gave, is named)."""
+    at = path
+    while not at.exists():
+        if at.parent == at:
+            break
+        at = at.parent
+    if not at.is_dir():
+        raise InputError(str(target), field, f"{at} is not a directory")
+    if not os.access(at, os.W_OK | os.X_OK):
+        raise InputError(str(target), field, f"cannot write in {at} (permission denied)")
 
-    return write_text(path, json.dumps(doc, indent=1, default=float))
+
+def output_dir(value: str | os.PathLike[str], field: str = "--out") -> Path:
+    """`value` as a folder a command may write its files into, checked before anything is
+    run: InputError naming the path and `field` if it is an existing file, lies below a
+    file, or cannot be written in.  Nothing is created."""
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise InputError(str(path), field, "exists and is not a directory (the files are written into a directory)")
+    _writable_folder(path, path, field)
+    return path
+
+
+def output_file(value: str | os.PathLike[str], field: str = "--out") -> Path:
+    """`value` as a file a command may write (atomically, `write_text`), checked before
+    anything is run: InputError naming the path and `field` if it is an existing directory
+    or its folder cannot be created or written in.  Nothing is created."""
+    path = Path(value)
+    if path.is_dir():
+        raise InputError(str(path), field, "is a directory (a file name is expected)")
+    _writable_folder(path.parent, path, field)
+    return path
+
+
+def json_number(x: float) -> float | str | None:
+    """A float as strict JSON can hold it: NaN (nothing measured) → null, ±inf (e.g. an
+    infinite margin: a zero error) → the strings "inf" / "-inf", any other value as is."""
+    if math.isnan(x):
+        return None
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return x
+
+
+def json_safe(doc: Any) -> Any:
+    """`doc` with every value strict JSON can hold: floats through `json_number`, numpy
+    scalars and arrays as Python numbers and lists, tuples as lists, paths as strings;
+    mappings and sequences walked."""
+    if isinstance(doc, bool) or doc is None or isinstance(doc, (str, int)):
+        return doc
+    if isinstance(doc, float):
+        return json_number(doc)
+    if isinstance(doc, np.generic):
+        return json_safe(doc.item())
+    if isinstance(doc, np.ndarray):
+        return json_safe(doc.tolist())
+    if isinstance(doc, Mapping):
+        return {k: json_safe(v) for k, v in doc.items()}
+    if isinstance(doc, (list, tuple)):
+        return [json_safe(v) for v in doc]
+    if isinstance(doc, os.PathLike):
+        return os.fspath(doc)
+    return doc
+
+
+def dumps_json(doc: Any, indent: int | None = 1) -> str:
+    """`doc` as strict JSON (RFC 8259: no NaN or Infinity, which most parsers other than
+    Python's refuse) — the one writer of every JSON document rsmcheck prints or stores."""
+    return json.dumps(json_safe(doc), indent=indent, allow_nan=False, default=_json_default)
+
+
+def _json_default(value: Any) -> Any:
+    """Anything else that is a number (a Decimal, a 0-d array-like) as a float."""
+    return json_number(float(value))
+
+
+def write_json(path: str | os.PathLike[str], doc: Any) -> Path:
+    """`doc` as indented strict JSON (`dumps_json`), atomically: a measurement that failed
+    (NaN) is written as null, an infinite value as "inf"."""
+    return write_text(path, dumps_json(doc))
 
 
 FORMAT = "rsmcheck-run"

@@ -27,7 +27,6 @@ this module only compares the two.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -67,11 +66,11 @@ def _errors(name: str, ref, other, names=OBSERVABLES) -> dict[str, dict[str, flo
 
 
 def _write(path: Path | None, doc: dict) -> None:
-    from rsmcheck.store import write_text
+    from rsmcheck.store import write_json
 
     if path is None:
         return
-    write_text(path, json.dumps(doc, indent=1, allow_nan=False, default=float))
+    write_json(path, doc)  # strict JSON, atomically
 
 
 #: reference tolerance of the rigid study: the reaction forces feel the rotor twist through

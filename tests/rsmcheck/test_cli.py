@@ -1,9 +1,13 @@
-"""The command line (README, "Command line"): bad input exits 2 with exactly one line on stderr naming the
-file and the field, no traceback and nothing written; `cases` lists the cases; `run`
-writes a readable HDF5 file with every observable."""
+"""The command line (README, "Command line"): bad input exits 2 with exactly one line on
+stderr naming the file and the field, no traceback and nothing written (an output path that
+is a file included, checked before anything runs); `cases` lists the cases; `run` writes a
+readable HDF5 file with every observable; a reader that goes away (`| head -1`) ends a
+command quietly; every --json output is strict JSON."""
 
 from __future__ import annotations
 
+import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -155,3 +159,227 @@ def test_run_free_drift_short_writes_a_readable_run_file(tmp_path, capsys):
     mom = obs["momentum_I"]
     assert np.abs(mom - mom[0]).max() <= 1e-9 * np.abs(mom[0]).max()
     assert runs["reference"].solver  # solver settings recorded
+
+
+# ---------------------------------------------------------------------------------------
+# a reader that goes away: `rsmcheck cases | head -1`
+# ---------------------------------------------------------------------------------------
+def _closed_pipe_run(argv: list[str], buffered: bool, read_first_line: bool) -> tuple[int, bytes, str]:
+    """Run `python -m rsmcheck.cli ARGV` with its stdout a pipe whose reader closes it (at
+    once, or after the first line); (exit status, first line, stderr)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    if not buffered:
+        env["PYTHONUNBUFFERED"] = "1"
+    proc = subprocess.Popen([sys.executable, "-m", "rsmcheck.cli", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env)
+    first = proc.stdout.readline() if read_first_line else b""
+    proc.stdout.close()  # the reader goes away; what the command writes next meets a broken pipe
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    return proc.wait(timeout=120), first, err
+
+
+@pytest.mark.parametrize("buffered", [True, False], ids=["buffered", "unbuffered"])
+@pytest.mark.parametrize("argv", [["cases"], ["--help"], ["run", "--help"], ["bench", "--help"]],
+                         ids=["cases", "help", "run_help", "bench_help"])
+def test_closed_pipe_ends_quietly(argv, buffered):
+    """The reader closes the pipe before the command writes: exit 0 (a listing, a help),
+    nothing on stderr (it was 'Exception ignored ... BrokenPipeError' and exit 120)."""
+    code, _, err = _closed_pipe_run(argv, buffered, read_first_line=False)
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
+    assert err == ""
+    assert code == 0
+
+
+def test_cases_into_head_1():
+    """`rsmcheck cases | head -1`: the first line arrives, then the command ends quietly."""
+    from cases.loader import list_cases
+
+    code, first, err = _closed_pipe_run(["cases"], buffered=False, read_first_line=True)
+    assert first.split() and first.split()[0].decode() in {p.stem for p in list_cases()}
+    assert err == "" and code == 0
+
+
+def test_exit_code_of_a_command_cut_short(capsys):
+    """A command that had not finished when its reader left exits `cut_short` (1: not all
+    done, so not 'all good'; 0 for a listing); one that had finished keeps its own code."""
+    from rsmcheck.errors import exit_code
+
+    def cut():
+        raise BrokenPipeError(32, "Broken pipe")
+
+    assert exit_code("x", cut) == 1
+    assert exit_code("x", cut, cut_short=0) == 0
+
+    class Broken:  # stdout whose flush finds the reader gone: the command itself had finished
+        def flush(self):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def fileno(self):
+            raise OSError("no descriptor")
+
+    import rsmcheck.errors as errors
+
+    real = sys.stdout
+    try:
+        errors.sys.stdout = Broken()
+        assert exit_code("x", lambda: 1, cut_short=0) == 1
+        assert exit_code("x", lambda: 0) == 0
+    finally:
+        errors.sys.stdout = real
+    assert capsys.readouterr().err == ""
+
+
+# ---------------------------------------------------------------------------------------
+# output paths: an existing file where a directory is wanted is a bad input, before any run
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv", [["run", "free_drift", "--out", "{f}"], ["check", "free_drift", "--out", "{f}"],
+                                  ["run", "free_drift", "--out", "{f}/sub"],
+                                  ["bless", "free_drift", "--reason", "r", "--goldens", "{f}"]],
+                         ids=["run", "check", "run_below_a_file", "bless_goldens"])
+def test_output_dir_that_is_a_file_exits_2(tmp_path, capsys, argv):
+    f = tmp_path / "results.txt"
+    f.write_text("mine\n")
+    argv = [a.replace("{f}", str(f)) for a in argv]
+    code = main(argv)
+    captured = capsys.readouterr()
+    assert code == 2
+    field = argv[argv.index("--goldens") if "--goldens" in argv else argv.index("--out")]
+    assert_one_clean_line(captured.err, str(f), field)
+    assert captured.out == ""
+    assert f.read_text() == "mine\n"  # untouched
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.txt"]
+
+
+def test_run_out_file_in_a_real_process(tmp_path):
+    """It was a FileExistsError traceback and exit 1."""
+    f = tmp_path / "results.txt"
+    f.write_text("")
+    proc = subprocess.run([sys.executable, "-m", "rsmcheck.cli", "run", "free_drift", "--out", str(f)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert_one_clean_line(proc.stderr, str(f), "--out")
+
+
+def test_bench_out_that_is_a_directory_exits_2_before_running(tmp_path, capsys, monkeypatch):
+    import rsmcheck.bench as bench
+
+    def no_run(*a, **k):
+        raise AssertionError("a run started before --out was checked")
+
+    monkeypatch.setattr(bench, "bench_run", no_run)
+    monkeypatch.setattr(bench, "rhs_timings", no_run)
+    code = main(["bench", "--cases", "free_drift", "--out", str(tmp_path)])
+    assert code == 2
+    assert_one_clean_line(capsys.readouterr().err, str(tmp_path), "--out")
+
+
+# ---------------------------------------------------------------------------------------
+# --json: strict JSON (RFC 8259 has no NaN or Infinity)
+# ---------------------------------------------------------------------------------------
+def strict_loads(text: str):
+    """json.loads that refuses NaN, Infinity and -Infinity (Python's accepts them)."""
+
+    def refuse(name):
+        raise ValueError(f"not JSON: {name}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+NAN, INF = float("nan"), float("inf")
+
+
+def test_dumps_json_is_strict():
+    from rsmcheck.store import dumps_json
+
+    doc = {"a": NAN, "b": INF, "c": -INF, "d": [np.float64(NAN), np.float32(1.5), np.int64(3)],
+           "e": np.array([1.0, INF]), "f": (True, None, "x"), "g": {"h": np.bool_(True)}}
+    expected = {"a": None, "b": "inf", "c": "-inf", "d": [None, 1.5, 3], "e": [1.0, "inf"],
+                "f": [True, None, "x"], "g": {"h": True}}
+    assert strict_loads(dumps_json(doc)) == expected
+    assert strict_loads(dumps_json(doc, indent=None)) == expected
+
+
+def test_write_json_is_strict(tmp_path):
+    from rsmcheck.store import write_json
+
+    path = write_json(tmp_path / "x.json", {"wall_s": NAN, "margin": INF})
+    assert strict_loads(path.read_text()) == {"wall_s": None, "margin": "inf"}
+
+
+def _fake_bench(monkeypatch):
+    import rsmcheck.bench as bench
+
+    monkeypatch.setattr(bench, "bench_run", lambda case, engine, variant: {
+        "case": case, "engine": engine, "variant": variant, "wall_s": NAN, "sim_s": NAN, "peak_mb": NAN,
+        "error": "RuntimeError: boom"})
+    monkeypatch.setattr(bench, "rhs_timings", lambda: {"reference_compiled": 1.0, "pinocchio_aba": NAN})
+
+
+def _fake_check(monkeypatch):
+    import rsmcheck.compare as compare
+
+    def check_case(case, short, options, parallel=True):
+        rows = [compare.Check(case.name, "momentum_I", 0.0, 1e-6), compare.Check(case.name, "energy", NAN, 1e-6)]
+        return compare.CaseCheck(case.name, rows=rows, duration=0.1, wall_s={"reference": NAN, "exudyn": INF})
+
+    monkeypatch.setattr(compare, "check_case", check_case)
+
+
+def _fake_gate(monkeypatch):
+    import rsmcheck.gate as gate
+
+    def fake(cases, engines, root=None, progress=None):
+        return [gate.GateResult(c.name, e, moved=[gate.Moved("energy", 1.0, 0.0, 0.1, 0)], largest_ratio=INF)
+                for c in cases for e in engines]
+
+    monkeypatch.setattr(gate, "gate", fake)
+    monkeypatch.setattr(gate, "tolerance_table", lambda cases, engines, root: [
+        {"case": "free_drift", "engine": "reference", "observable": "energy", "tolerance": 1e-9,
+         "perturbation_change": NAN, "largest_value": INF}])
+
+
+def _fake_modes(monkeypatch):
+    import rsmcheck.modes as modes
+
+    monkeypatch.setattr(modes, "link_rows", lambda n_elements=None: [
+        {"basis": "PP", "mode": 1, "analytic_hz": 30.16, "reference_hz": 30.16, "exudyn_hz": NAN}])
+    monkeypatch.setattr(modes, "arm_rows", lambda n_modes=None, n_elements=None: [
+        {"configuration": "x", "mode": 1, "reference_hz": 1.0, "exudyn_hz": INF, "rel_difference": INF}])
+
+
+def _fake_pinocchio(monkeypatch):
+    import pinocchio_check.compare as pc
+
+    monkeypatch.setattr(pc, "run_checks", lambda **k: [
+        {"quantity": "M", "chain": "open", "states": 1, "max_rel_error": NAN, "tolerance": INF, "pass": False,
+         "seed": 0, "entry": "", "n_modes": 0, "holding": "arm1"}])
+
+
+@pytest.mark.parametrize("argv, fake, key", [
+    (["bench", "--json", "--cases", "free_drift", "--engine", "reference"], _fake_bench, "runs"),
+    (["check", "free_drift", "--json"], _fake_check, "checks"),
+    (["gate", "free_drift", "--engine", "reference", "--json"], _fake_gate, "gate"),
+    (["gate", "free_drift", "--engine", "reference", "--json", "--tolerances"], _fake_gate, "tolerances"),
+    (["modes", "--json"], _fake_modes, "links"),
+    (["pinocchio", "--json", "--modes", "0"], _fake_pinocchio, "checks"),
+], ids=["bench", "check", "gate", "gate_tolerances", "modes", "pinocchio"])
+def test_every_json_output_is_strict(monkeypatch, capsys, argv, fake, key):
+    """Every --json writer, fed NaN and infinities (a failed run, a zero error, a zero
+    tolerance): the output parses as strict JSON, NaN as null and inf as "inf"."""
+    fake(monkeypatch)
+    main(argv)
+    doc = strict_loads(capsys.readouterr().out)
+    assert doc[key]
+    text = json.dumps(doc)
+    assert "null" in text or '"inf"' in text  # the non-finite values came through, spelled out
+
+
+def test_bench_json_spells_out_a_failed_run(monkeypatch, capsys, tmp_path):
+    _fake_bench(monkeypatch)
+    out = tmp_path / "bench.json"
+    assert main(["bench", "--json", "--cases", "free_drift", "--engine", "reference", "--out", str(out)]) == 1
+    doc = strict_loads(capsys.readouterr().out)
+    assert doc["runs"][0]["wall_s"] is None and doc["runs"][0]["error"] == "RuntimeError: boom"
+    assert doc["rhs_us"]["pinocchio_aba"] is None
+    assert strict_loads(out.read_text()) == doc
