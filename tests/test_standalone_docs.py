@@ -61,18 +61,19 @@ def test_no_reference_to_documents_outside_the_repository():
 
 
 # the patterns themselves: what they must catch and what they must leave alone
+# (each example is cut in two so that this file, which is tracked too, does not match itself)
 CAUGHT = [
-    "One row of " + "SPEC" + " §4.",
-    "see " + "SPEC" + ".md",
-    "as the " + "ENGINE-NOTES" + " say",
-    "engine" + "-notes.md",
-    "copied from .." + "/shared/seed",
-    "fixed in " + "issue" + " 12",
-    "(" + "Issue" + " #7)",
-    "see " + "PR" + " 31",
-    "follows up " + "#" + "12 and more",
-    "(" + "#" + "12)",
-    "closes " + "gh" + "-40",
+    "One row of SP" + "EC §4.",
+    "see SP" + "EC.md",
+    "as the ENGINE-" + "NOTES say",
+    "engine-" + "notes.md",
+    "copied from ../sha" + "red/seed",
+    "fixed in iss" + "ue 12",
+    "(Iss" + "ue #" + "7)",
+    "see P" + "R 31",
+    "follows up #" + "12 and more",
+    "(#" + "12)",
+    "closes g" + "h-40",
 ]
 LEFT_ALONE = [
     "SPECTRAL_RADIUS_DEFAULT = 0.6",
