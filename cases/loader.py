@@ -302,6 +302,9 @@ class Case:
     short: "Case | None" = field(default=None, repr=False)
     #: a sequence case (the mission): the phase cases it runs in order, each chained
     phases: tuple[str, ...] = ()
+    #: a sequence case: rows of a phase's [compare] table replaced for the chained flight
+    #: (phase name → the replacing rows), from the sequence file's [compare.PHASE.OBSERVABLE]
+    phase_compare: Mapping[str, tuple[CompareSpec, ...]] = field(default_factory=dict)
     #: Exudyn engine settings of the case ([exudyn]: substeps, n_elements), defaults elsewhere
     exudyn: Mapping[str, Any] = field(default_factory=dict)
     #: reference engine step settings of the case ([reference]: h_max), defaults elsewhere
@@ -438,9 +441,9 @@ def _parse_sequence(raw: Mapping[str, Any], where: str, path: Path, digest: str)
     start, e.g. p1's short variant does not bring the target into arm 2's reach)."""
     w = where
     for k in raw:
-        if k not in ("name", "description", "phases", "short_phases"):
-            raise InputError(w, k, "not allowed in a sequence case (known: description, name, phases, "
-                             "short_phases)")
+        if k not in ("name", "description", "phases", "short_phases", "compare", "short_compare"):
+            raise InputError(w, k, "not allowed in a sequence case (known: compare, description, name, "
+                             "phases, short_compare, short_phases)")
     for k in ("name", "description"):
         if k not in raw:
             raise InputError(w, k, "missing (required)")
@@ -453,15 +456,37 @@ def _parse_sequence(raw: Mapping[str, Any], where: str, path: Path, digest: str)
 
     def build(cases: list[Case], key: str, is_short: bool) -> Case:
         first = cases[0]
+        ckey = "short_compare" if is_short else "compare"
         return replace(first, name=name, description=description,
                        duration=sum(c.variant(is_short).duration for c in cases),
                        short_duration=sum(c.variant(True).duration for c in cases), path=w,
                        file_hash=digest, raw=raw, phases=tuple(c.name for c in cases), short=None,
-                       segments=(), compare=(), start_from=None, is_short=is_short)
+                       segments=(), compare=(), start_from=None, is_short=is_short,
+                       phase_compare=_phase_compare(w, ckey, raw.get(ckey, {}), cases, is_short))
 
     short_case = build(short, "short_phases", True)
     full_case = build(full, "phases", False)
     return replace(full_case, short_duration=short_case.duration, short=short_case)
+
+
+def _phase_compare(w: str, key: str, v: Any, cases: list[Case], is_short: bool) -> dict[str, tuple[CompareSpec, ...]]:
+    """[compare.PHASE.OBSERVABLE] of a sequence: rows that replace a phase's own for the
+    chained flight; each phase and observable must exist in that variant's tables."""
+    if not isinstance(v, Mapping):
+        raise InputError(w, key, "must be a table of phase tables")
+    by_name = {c.name: c.variant(is_short) for c in cases}
+    out = {}
+    for phase, table in v.items():
+        if phase not in by_name:
+            raise InputError(w, f"{key}.{phase}", f"not a phase of this variant (phases: {', '.join(by_name)})")
+        rows = _compare(w, f"{key}.{phase}", table)
+        own = {s.observable for s in by_name[phase].compare}
+        for r in rows:
+            if r.observable not in own:
+                raise InputError(w, f"{key}.{phase}.{r.observable}", f"not compared in {phase}'s own table "
+                                 f"(it compares {', '.join(sorted(own))}): only its rows can be replaced")
+        out[phase] = rows
+    return out
 
 
 def _sequence(w: str, key: str, names: Any, name: str, path: Path) -> list[Case]:

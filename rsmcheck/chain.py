@@ -237,35 +237,47 @@ def use_stored_start(variant: Case, src: Path, short: bool) -> bool:
 
 def run_mission(mission: Case, engines: Sequence[str], short: bool, out: Path,
                 progress: ProgressFactory | None = None,
-                options: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
+                options: Mapping[str, Mapping[str, Any]] | None = None,
+                phase_runs: dict[str, dict[str, EngineRun]] | None = None) -> Path:
     """All phases of `mission` (the variant to run) in sequence, each from the previous
-    one's end state (each phase's short variant with `short`); one run file."""
-    from rsmcheck.runner import run
-
-    from cases.loader import sibling_case
-
-    phases = [load_case(sibling_case(p, Path(mission.path))).variant(short) for p in mission.phases]
+    one's end state (each phase's short variant with `short`); one run file.  With
+    `phase_runs`, each phase's own run is also put there (phase name → engine → run)."""
     runs: dict[str, EngineRun] = {}
     states: dict[str, dict] = {}
     for name in engines:
-        pieces: list[tuple[float, EngineRun]] = []
-        state = None
-        offset = 0.0
-        for ph in phases:
-            start_case = ph if state is None else chained(ph, state)
-            engine = make_engine(name, start_case, **dict((options or {}).get(name, {})))
-            r = run(engine, start_case, start_case.duration, progress(name, ph.name) if progress else None)
-            pieces.append((offset, r))
-            state = end_state(engine, start_case.params)
-            offset += start_case.duration
+        pieces, states[name] = fly(mission, name, short, progress, (options or {}).get(name, {}))
         runs[name] = _concatenate(name, pieces)
-        states[name] = state
+        if phase_runs is not None:
+            for (_, r), phase in zip(pieces, mission.phases):
+                phase_runs.setdefault(phase, {})[name] = r
     path = out / f"{mission.name}.h5"
     write_run(path, runs, case_name=mission.name, case_hash=mission.file_hash,
               param_hash=mission.params.digest(),
               extra_attrs={"short": bool(short), "mission_phases": ",".join(mission.phases)})
     save_end_states(end_state_path(out, mission.name, short), mission, short, states)
     return path
+
+
+def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory | None = None,
+        options: Mapping[str, Any] | None = None) -> tuple[list[tuple[float, EngineRun]], dict]:
+    """One engine through the phases of `mission` (the variant to run): [(start time in the
+    mission, the phase's run)], and the end state of the last phase."""
+    from rsmcheck.runner import run
+
+    from cases.loader import sibling_case
+
+    pieces: list[tuple[float, EngineRun]] = []
+    state = None
+    offset = 0.0
+    for p in mission.phases:
+        ph = load_case(sibling_case(p, Path(mission.path))).variant(short)
+        start_case = ph if state is None else chained(ph, state)
+        engine = make_engine(engine_name, start_case, **dict(options or {}))
+        r = run(engine, start_case, start_case.duration, progress(engine_name, ph.name) if progress else None)
+        pieces.append((offset, r))
+        state = end_state(engine, start_case.params)
+        offset += start_case.duration
+    return pieces, state
 
 
 def _concatenate(engine: str, pieces: list[tuple[float, EngineRun]]) -> EngineRun:

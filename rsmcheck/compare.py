@@ -210,6 +210,9 @@ class Check(_Verdict):
     growth_rates: Mapping[str, float] = field(default_factory=dict)
     #: (time, error) of the samples at a constraint switch, left out of the error (MULTIPLIERS)
     at_switches: tuple[tuple[float, float], ...] = ()
+    #: a chained phase: the difference the engines carry into it, max_c |a_c(0) − b_c(0)|,
+    #: already added to `tolerance` (see `check_runs`)
+    inherited: float = 0.0
 
     def as_dict(self) -> dict[str, Any]:
         out = {"case": self.case, "observable": self.observable, "error": _finite(self.error),
@@ -220,6 +223,8 @@ class Check(_Verdict):
             out["growth_rates"] = {k: _finite(v) for k, v in self.growth_rates.items()}
         if self.at_switches:
             out["at_switches"] = [{"time": ts, "error": _finite(e)} for ts, e in self.at_switches]
+        if self.inherited:
+            out["inherited"] = _finite(self.inherited)
         return out
 
     def switch_note(self) -> str:
@@ -230,12 +235,22 @@ class Check(_Verdict):
         return f"not compared at the constraint switch ({at}): one-sided limits, docs/physics.md §4.2"
 
 
-def check_runs(case, reference: EngineRun, other: EngineRun) -> list[Check]:
-    """Every entry of `case.compare` (a `cases.loader.Case`, the variant that was run)."""
+def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = False,
+               specs: Sequence[Any] | None = None) -> list[Check]:
+    """Every entry of `case.compare` (a `cases.loader.Case`, the variant that was run), or
+    of `specs` in its place.
+
+    `chained`: the runs are a phase of a chained flight, each engine starting from its own
+    end state of the previous phase, so the engines start the phase apart by
+    d0 = max_c |a_c(0) − b_c(0)|.  Where the phase's dynamics carry or reduce a difference
+    (positions held or steered by the controllers), |a − b| ≤ d0 + (what the phase adds),
+    so a max_abs or rms row is checked against tolerance + d0 (d0 is in the row as
+    `inherited`); a row whose difference the phase amplifies needs its own tolerance in the
+    sequence file (docs/cases.md §6)."""
     rows = []
     t = _same_times(case.name, reference, other)
     switches = switch_samples(t, reference, other)
-    for spec in case.compare:
+    for spec in (case.compare if specs is None else specs):
         a, b = _pair(reference, other, spec.observable, t.size)
         skip = switches if spec.observable in MULTIPLIERS and spec.metric in ("max_abs", "rms") else None
         if skip is not None and not np.all(np.isfinite(a[skip] - b[skip])):
@@ -244,8 +259,9 @@ def check_runs(case, reference: EngineRun, other: EngineRun) -> list[Check]:
         rates = ({"reference": growth_rate(t, b, spec.window), "other": growth_rate(t, a, spec.window)}
                  if spec.metric == "growth" else {})
         at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in skip) if skip is not None else ()
-        rows.append(Check(case.name, spec.observable, err, float(spec.tolerance), spec.metric, spec.why,
-                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at))
+        d0 = float(np.max(np.abs(a[0] - b[0]))) if chained and spec.metric in ("max_abs", "rms") and t.size else 0.0
+        rows.append(Check(case.name, spec.observable, err, float(spec.tolerance) + d0, spec.metric, spec.why,
+                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at, d0))
     return rows
 
 

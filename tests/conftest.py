@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import multiprocessing
 import shutil
+import site
 import tempfile
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
@@ -29,6 +30,7 @@ from typing import Any, Callable
 import pytest
 
 ENGINES = ("reference", "exudyn")
+ROOT = Path(__file__).resolve().parent.parent
 
 
 @dataclass
@@ -66,19 +68,15 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
 
 
 def expected_wall(case_name: str, engine: str) -> float:
-    """The wall time the case's golden recorded for `engine` [s] (0 without a golden); for a
-    sequence case the sum over its short phases.  Only orders the jobs."""
+    """The wall time the case's golden recorded for `engine` (rsmcheck.collect); 0 for a
+    case that does not load (the tests themselves report on it).  Only orders the jobs."""
     from cases.loader import load_case
-    from rsmcheck.gate import golden_path
-    from rsmcheck.store import read_run
+    from rsmcheck.collect import expected_wall as recorded
+    from rsmcheck.errors import InputError
 
     try:
-        case = load_case(case_name)
-        if case.phases:
-            return sum(expected_wall(p, engine) for p in case.variant(True).phases)
-        path = golden_path(case_name, engine)
-        return float(read_run(path)[0][engine].solver.get("wall_s", 0.0)) if path.exists() else 0.0
-    except Exception:  # noqa: BLE001 — a case the tests themselves will report on
+        return recorded(load_case(case_name), engine)
+    except InputError:
         return 0.0
 
 
@@ -86,7 +84,10 @@ class RunPool:
     """Runs keyed by (case, engine, options); computed in the background, on demand."""
 
     def __init__(self, workers: int = 2):
-        self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        # the workers unpickle `_job` as tests.conftest._job: the repository root must be on
+        # their path also when pytest was started as `pytest` (not `python -m pytest`)
+        self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                        initializer=site.addsitedir, initargs=(str(ROOT),))
         self.futures: dict[tuple, Future] = {}
         self.workdir = tempfile.mkdtemp(prefix="rsmcheck-runs-")
 
