@@ -11,7 +11,7 @@ PYTEST_ARGS ?=
 PACKAGE_INITS := $(wildcard rsmcheck/__init__.py reference_model/__init__.py \
 	exudyn_model/__init__.py pinocchio_check/__init__.py cases/__init__.py report/__init__.py)
 
-.PHONY: venv test study report faults clean
+.PHONY: venv test study report fullcheck faults clean
 
 venv: $(STAMP)
 
@@ -36,9 +36,16 @@ study: venv
 faults: venv
 	$(VPY) -m rsmcheck.faults
 
+# The short variants of every case and the short mission, both engines side by side
+# (rsmcheck.collect stores the runs in out/; a second `make report` re-renders in seconds
+# and re-runs only what the code or the case files changed).
 report: venv
-	mkdir -p out
-	$(VENV)/bin/rsmcheck report --engine all --short --out out/report.html
+	$(VENV)/bin/rsmcheck report --short --out out/report.html
+
+# The slow tier, not in CI: every case and the whole mission (p1 → p5, chained) at full
+# length in both engines, compared with the cases' tolerances.  Hours on 2 cores.
+fullcheck: venv
+	$(VENV)/bin/rsmcheck report --out out/full/report.html
 
 clean:
 	rm -rf out build *.egg-info .pytest_cache

@@ -1,1 +1,1 @@
-"""Self-contained HTML report comparing the engines phase by phase (SPEC §1)."""
+"""The HTML report: renders what rsmcheck.collect stored (README, "The report")."""

@@ -58,10 +58,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from report.build import build_report
+    from rsmcheck.collect import collect
+    from rsmcheck.store import output_file
 
-    path, failures = build_report(Path(args.out), _engine_names(args.engine), args.short, args.cases or None)
-    print(f"wrote {path}" + (f"; did not run: {', '.join(failures)}" if failures else ""))
+    out = output_file(args.out, "--out")  # before anything runs
+    folder = out.parent
+    if not args.render_only:
+        res = collect(folder, args.short, _engine_names(args.engine), args.cases or None, _progress,
+                      rerun=args.rerun)
+        failures = list(res.failures)
+    else:
+        failures = []
+    from report.build import render
+
+    path = render(folder, out, args.cases or None)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)"
+          + (f"; did not run: {', '.join(failures)}" if failures else ""))
     return 1 if failures else 0
 
 
@@ -294,11 +306,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="one JSON object {\"links\": [...], \"arms\": [...]}")
     p.add_argument("--modes", type=int, help="reference modes per link for the arms (default: each case's)")
     p.add_argument("--elements", type=int, help="Exudyn ANCF elements per link (default 8)")
-    p = sub.add_parser("report", help="run the cases and write a self-contained HTML report")
-    p.add_argument("--out", default="out/report.html", help="HTML file (run files go to its folder/runs)")
-    p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
+    p = sub.add_parser("report", help="run what is not stored yet, then write one self-contained HTML page")
+    p.add_argument("--out", default="out/report.html",
+                   help="HTML file; the runs and tables it is built from are stored in its folder")
+    p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
     p.add_argument("--short", action="store_true", help="the compressed variant of each case")
     p.add_argument("--cases", nargs="+", metavar="CASE", help="only these cases (default: all)")
+    p.add_argument("--rerun", action="store_true", help="run everything again, even what is stored and current")
+    p.add_argument("--render-only", action="store_true",
+                   help="only render what is stored (seconds); run nothing")
     from rsmcheck.gate import GOLDEN_DIR
 
     p = sub.add_parser("gate", help="run the cases' short variants and compare each engine with its golden")

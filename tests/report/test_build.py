@@ -1,73 +1,109 @@
-"""report.build: the stored engine studies as HTML tables."""
+"""report.build: the page rendered from stored runs (tests/report/conftest.py)."""
 
 from __future__ import annotations
 
+import html
 import json
+import re
 
-from report.build import _studies_html
+from report.build import departures_table, fmt, render, verdict_rows
+from rsmcheck.compare import check_runs
 
-
-def _refinement(tmp_path, errors):
-    doc = {"case": "motor_step", "duration": 1.0, "modes": [2, 4],
-           "exudyn": [{"substeps": 256, "h": 1e-3 / 256, "axial_to_bending": 1e6}],
-           "tolerances": {"motor_angles": 1e-6}, "errors": errors}
-    (tmp_path / "refinement_motor_step.json").write_text(json.dumps(doc))
-    return _studies_html(tmp_path)
+SECTIONS = ("verdict", "provenance", "departures", "mission", "paper", "cases", "pinocchio", "modes", "studies",
+            "speed", "faults")
 
 
-def test_refinement_rows_mark_errors_above_the_tolerance(tmp_path):
-    page = _refinement(tmp_path, {"2,256,1e+06": {"motor_angles": 3.06e-6},
-                                  "4,256,1e+06": {"motor_angles": 4.17e-7}})
-    assert "Refinement, motor_step" in page and "motor_angles (≤ 1e-06)" in page
-    assert "<span class='fail'>3.06e-06</span>" in page
-    assert "4.17e-07" in page and "<span class='fail'>4.17e-07" not in page
+def test_every_section_is_on_the_page(rendered):
+    for sid in SECTIONS:
+        assert f'<section id="{sid}">' in rendered.html, sid
+        assert f'href="#{sid}"' in rendered.html, f"table of contents: {sid}"
 
 
-def test_a_missing_pair_is_shown_as_missing_and_red(tmp_path):
-    page = _refinement(tmp_path, {"2,256,1e+06": {"motor_angles": 3.06e-6}})
-    assert "<span class='fail'>–</span>" in page
-
-
-def test_the_stored_studies_render():
-    page = _studies_html()
-    assert "Refinement, motor_step" in page and "Refinement, release" in page
-
-
-def test_engine_comparison_shows_the_switch_sample_left_out():
-    """docs/physics.md §4.2 item 4: the reaction force at a release is reported, not compared."""
-    import numpy as np
-
+def test_cross_check_rows_are_those_of_rsmcheck_check(rendered):
+    """The verdict's cross-check rows are `check_runs` on the same runs, row for row (what
+    `rsmcheck check --json` prints), and each is in the page's verdict table."""
     from cases.loader import load_case
-    from report.build import _compare_html
-    from rsmcheck.observables import allocate
-    from rsmcheck.store import EngineRun, Event
 
-    case = load_case("release")
-    t = np.arange(401) * 5e-3
-    runs = {}
-    for engine, jump in (("reference", 0.9), ("exudyn", 0.0)):
-        obs = allocate(t.size)
-        obs["time"] = t
-        obs["reaction_forces_I"][:, 0] = np.where(t >= 1.0, -10.0 - 0.9, -10.0)
-        obs["reaction_forces_I"][200, 0] = -10.0 - jump  # the left limit in one engine
-        runs[engine] = EngineRun(engine, obs, events=[Event(1.0, "release", "arm=2")])
-    page = _compare_html(case, runs, short=True)
-    assert "not compared at the constraint switch (t = 1 s: 0.9)" in page
+    expected = []
+    for name in ("free_drift", "p1_rigid_gains"):
+        runs = rendered.runs[name]
+        expected += [r.as_dict() for r in check_runs(load_case(name).variant(True), runs["reference"], runs["exudyn"])]
+    assert rendered.verdict["checks"] == json.loads(json.dumps(expected))
+    table = rendered.html[rendered.html.index('id="verdict-table"'):]
+    table = table[:table.index("</table>")]
+    rows = re.findall(r'<tr class="[^"]*" data-kind="cross-check">(.*?)</tr>', table, re.S)
+    assert len(rows) == len(expected)
+    for r in expected:
+        assert any(f">{r['observable']}<" in row and f">{fmt(r['error'])}<" in row and r["case"] in row
+                   for row in rows), r
 
 
-def test_fault_matrix_section_marks_missed_faults_and_false_alarms(tmp_path):
-    import json
+def test_failures_come_first_then_the_smallest_margin():
+    doc = {"checks": [
+        {"case": "a", "observable": "x", "error": 1.0, "tolerance": 2.0, "margin": 2.0, "pass": True},
+        {"case": "b", "observable": "y", "error": 3.0, "tolerance": 1.0, "margin": 1 / 3, "pass": False},
+        {"case": "c", "observable": "z", "error": 1.0, "tolerance": 1.5, "margin": 1.5, "pass": True,
+         "at_switches": [{"time": 1.0, "error": 0.9}]}],
+        "gate": [{"case": "a", "engine": "exudyn", "unchanged": False, "largest_ratio": 2.4,
+                  "moved": [{"observable": "energy", "ratio": 2.4}], "inputs_changed": [], "structure": []}]}
+    rows = verdict_rows(doc)
+    assert [(r.kind, r.case) for r in rows] == [("cross-check", "b"), ("gate", "a"), ("cross-check", "c"),
+                                                ("cross-check", "a")]
+    assert "not compared at the constraint switches: t = 1 s (0.9)" in rows[2].note
+    assert rows[1].margin == 1 / 2.4 and "energy 2.4×" in rows[1].note
 
-    from report.build import _faults_html
 
-    assert _faults_html(tmp_path) == ""
-    doc = {"commit": "abc", "cases": ["release"], "faults": [
-        {"name": "caught", "layer": "reference", "what": "x", "crosscheck": ["release: ee2_pos_B"], "pinocchio": [],
-         "gate": ["release/reference: ee2_pos_B"], "caught_by": ["crosscheck", "gate"]},
+def test_the_mission_has_a_section_per_phase(rendered):
+    """The short mission (p2 → p5) on the shared time axis, one section per phase; with one
+    engine there is nothing to compare, and the page says so in red."""
+    from cases.loader import load_case
+
+    phases = load_case("mission").variant(True).phases
+    for ph in phases:
+        assert f'id="mission-{ph}"' in rendered.html
+    mission = rendered.html[rendered.html.index('<section id="mission">'):rendered.html.index('<section id="paper">')]
+    assert mission.count("no comparison rows for this phase") == len(phases)
+    assert "mission phase" in rendered.html and "Not checked in this report:</b> mission phase" in rendered.html
+
+
+def test_paper_figures_are_drawn_from_the_runs(rendered):
+    """Figs. 10–17 come from the mission's phases, Fig. 6a from p1_rigid_gains; Fig. 5 needs
+    p1_transport, which this page did not run: it says so."""
+    page = rendered.html
+    for number in ("6a", "10", "11", "12", "13", "14", "15", "16", "17"):
+        block = page[page.index(f'id="fig{number}"'):]
+        block = block[:block.index("</div>\n", block.index('class="caption"'))]
+        assert "data-fig=" in block, number
+    assert "the chained mission, phase p4_hohmann" in page
+    assert "no run of p1_transport is stored" in page
+
+
+def test_every_figure_has_its_data_and_the_page_stays_small(rendered):
+    figures = json.loads(html.unescape(re.search(r'<script id="figures" type="application/json">(.*?)</script>',
+                                                 rendered.html, re.S).group(1)))
+    divs = re.findall(r"data-fig='(\d+)'", rendered.html)
+    assert sorted(int(d) for d in divs) == list(range(len(figures)))
+    assert f'data-figures="{len(figures)}"' in rendered.html
+    assert rendered.page.stat().st_size < 25e6
+
+
+def test_departures_come_from_docs_physics():
+    head, rows = departures_table()
+    assert head[0].startswith("paper") and len(head) == 4
+    assert rows and all(len(r) == 4 for r in rows)
+
+
+def test_stored_studies_and_faults_render_from_a_data_folder(rendered, tmp_path):
+    doc = {"case": "motor_step", "duration": 1.0, "modes": [2],
+           "exudyn": [{"substeps": 256, "h": 1e-3 / 256, "axial_to_bending": 1e6}],
+           "tolerances": {"motor_angles": 1e-6}, "errors": {"2,256,1e+06": {"motor_angles": 3.06e-6}}}
+    (tmp_path / "refinement_motor_step.json").write_text(json.dumps(doc))
+    faults = {"commit": "abc", "cases": ["release"], "faults": [
         {"name": "missed", "layer": "exudyn", "what": "y", "crosscheck": [], "pinocchio": [], "gate": [], "caught_by": []},
-        {"name": "noop", "layer": "none", "what": "z", "crosscheck": [], "pinocchio": [], "gate": [], "caught_by": []},
-    ]}
-    (tmp_path / "faults.json").write_text(json.dumps(doc))
-    page = _faults_html(tmp_path)
-    assert page.count("as expected") == 2 and page.count("MISSED") == 1
-    assert "release/reference: ee2_pos_B" in page
+        {"name": "noop", "layer": "none", "what": "z", "crosscheck": [], "pinocchio": [], "gate": [], "caught_by": []}]}
+    (tmp_path / "faults.json").write_text(json.dumps(faults))
+    page = render(rendered.folder, tmp_path / "page.html", ["free_drift"], data_dir=tmp_path).read_text()
+    assert 'class="fail">3.06e-06</td>' in page
+    assert page.count('<span class="fail">MISSED</span>') == 1
+    assert page.count('<span class="pass">as expected</span>') == 1
+    assert "No stored speed measurement" in page
