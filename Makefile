@@ -9,7 +9,7 @@ PYTEST_ARGS ?=
 # Re-install when pyproject.toml changes or a top-level package appears (the editable
 # install maps the packages that exist when it runs).
 PACKAGE_INITS := $(wildcard rsmcheck/__init__.py reference_model/__init__.py \
-	exudyn_model/__init__.py pinocchio_check/__init__.py cases/__init__.py report/__init__.py)
+	exudyn_model/__init__.py pinocchio_check/__init__.py report/__init__.py)
 
 .PHONY: venv test study report fullcheck faults clean
 

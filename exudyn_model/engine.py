@@ -66,10 +66,10 @@ from exudyn.itemInterface import (  # noqa: E402
     ObjectConnectorCoordinateVector, ObjectGenericODE2, ObjectGround, ObjectJointPrismatic2D,
     ObjectJointRevolute2D, ObjectRigidBody2D)
 
-from cases.loader import Case  # noqa: E402
 from exudyn_model import field as fld  # noqa: E402
 from exudyn_model import links  # noqa: E402
 from exudyn_model import reactions  # noqa: E402
+from rsmcheck.cases import Case  # noqa: E402
 from rsmcheck.engine import Inputs, Sensors  # noqa: E402
 from rsmcheck.errors import SimulationDiverged  # noqa: E402
 from rsmcheck.initial import build_initial  # noqa: E402

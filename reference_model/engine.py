@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 
-from cases.loader import Case
 from reference_model import core, switching
 from reference_model.implicit import integrate_trbdf2
 from reference_model.model import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, terminal_basis
 from reference_model.observe import observe
+from rsmcheck.cases import Case
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.errors import SimulationDiverged
 from rsmcheck.initial import InitialConfiguration, build_initial, orbit_start

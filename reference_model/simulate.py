@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from cases.loader import Case
 from reference_model.engine import ReferenceEngine
+from rsmcheck.cases import Case
 from rsmcheck.params import Params
 from rsmcheck.runner import Progress, run
 from rsmcheck.store import EngineRun

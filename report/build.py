@@ -31,9 +31,9 @@ from typing import Any, Sequence
 
 import jinja2
 
-from cases.loader import Case, list_cases, load_case
 from report import paper
 from report.plots import comparison_figure, run_marks
+from rsmcheck.cases import Case, list_cases, load_case
 from rsmcheck.collect import MODES, VERDICT, phase_runs
 from rsmcheck.errors import InputError
 from rsmcheck.observables import BY_NAME

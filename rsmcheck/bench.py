@@ -35,7 +35,7 @@ VARIANTS = ("short", "full")
 
 _CHILD = r"""
 import json, resource, sys, tempfile, time
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.chain import run_case
 from rsmcheck.engines import make_engine
 from rsmcheck.runner import run
@@ -79,7 +79,7 @@ def rhs_timings(n: int = 2000) -> dict[str, Any]:
     import numpy as np
     from numba import njit
 
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from reference_model import core
     from reference_model.engine import ReferenceEngine
 
@@ -170,7 +170,7 @@ def table(doc: dict) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from cases.loader import list_cases, load_case
+    from rsmcheck.cases import list_cases, load_case
     from rsmcheck.store import dumps_json, git_commit, output_file, write_json
 
     parser = argparse.ArgumentParser(prog="rsmcheck bench", description=__doc__.split("\n\n")[0])

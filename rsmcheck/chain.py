@@ -41,7 +41,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from cases.loader import Case, load_case
+from rsmcheck.cases import Case, load_case
 from rsmcheck.engine import Inputs
 from rsmcheck.engines import make_engine
 from rsmcheck.errors import InputError
@@ -217,7 +217,7 @@ def starts_short_sequence(name: str) -> bool:
     although its full sequence does not: the short predecessor does not end where this phase
     begins (p1's short variant does not bring the target into arm 2's reach), so with --short
     this phase runs from its own [initial], as in the short mission."""
-    from cases.loader import list_cases
+    from rsmcheck.cases import list_cases
 
     for path in list_cases():
         seq = load_case(path)
@@ -264,7 +264,7 @@ def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory 
     mission, the phase's run)], and the end state of the last phase."""
     from rsmcheck.runner import run
 
-    from cases.loader import sibling_case
+    from rsmcheck.cases import sibling_case
 
     pieces: list[tuple[float, EngineRun]] = []
     state = None

@@ -27,7 +27,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _cmd_cases(args: argparse.Namespace) -> int:
-    from cases.loader import list_cases, load_case
+    from rsmcheck.cases import list_cases, load_case
 
     for path in list_cases():
         case = load_case(path)
@@ -41,7 +41,7 @@ def _engine_names(choice: str) -> list[str]:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from rsmcheck.chain import run_case
     from rsmcheck.runner import terminal_progress
     from rsmcheck.store import output_dir
@@ -113,7 +113,7 @@ def _fmt(x: float) -> str:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from rsmcheck.compare import check_case
     from rsmcheck.store import dumps_json, output_dir, write_run
 
@@ -197,7 +197,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _gate_cases(names: Sequence[str] | None) -> list:
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from rsmcheck.gate import gated_cases
 
     if not names or list(names) == ["all"]:

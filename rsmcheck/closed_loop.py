@@ -46,7 +46,7 @@ def _outputs(arms):
 
 def at_rest(case):
     """`case` at rest in its initial configuration, orbit off (damping kept)."""
-    from cases.loader import OrbitSpec
+    from rsmcheck.cases import OrbitSpec
 
     ini = dataclasses.replace(case.initial, base_rate=(0.0, 0.0, 0.0), joint_rates=(0.0,) * 6)
     return dataclasses.replace(case, initial=ini, orbit=False, orbit_spec=OrbitSpec())
@@ -117,7 +117,7 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
 
 
 def main(argv=None) -> int:
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
 
     p = argparse.ArgumentParser(prog="python -m rsmcheck.closed_loop", description=__doc__.split("\n")[0])
     p.add_argument("case", nargs="?", default="p1_rigid_gains")

@@ -39,14 +39,14 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from cases.loader import Case, list_cases, load_case, sibling_case
+from rsmcheck.cases import Case, list_cases, load_case, sibling_case
 from rsmcheck.compare import check_runs
 from rsmcheck.engines import ENGINES
 from rsmcheck.errors import InputError
 from rsmcheck.store import EngineRun, Event, Phase, git_commit, package_versions, read_run, write_json, write_run
 
 #: the packages whose sources make a run what it is
-SOURCE_PACKAGES = ("rsmcheck", "reference_model", "exudyn_model", "pinocchio_check", "cases")
+SOURCE_PACKAGES = ("rsmcheck", "reference_model", "exudyn_model", "pinocchio_check")
 #: modules of rsmcheck that orchestrate, compare or report: no run depends on them (the
 #: verdict is recomputed from the runs every time)
 NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/collect.py", "rsmcheck/bench.py", "rsmcheck/studies.py",

@@ -50,7 +50,7 @@ from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
 from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
 
-#: metrics a [compare] entry may ask for (cases.loader.METRICS names the same ones)
+#: metrics a [compare] entry may ask for (rsmcheck.cases.METRICS names the same ones)
 METRICS = ("max_abs", "rms", "final", "growth")
 
 #: observables that are Lagrange multipliers of the grasp constraints, and the events that
@@ -237,7 +237,7 @@ class Check(_Verdict):
 
 def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = False,
                specs: Sequence[Any] | None = None) -> list[Check]:
-    """Every entry of `case.compare` (a `cases.loader.Case`, the variant that was run), or
+    """Every entry of `case.compare` (a `rsmcheck.cases.Case`, the variant that was run), or
     of `specs` in its place.
 
     `chained`: the runs are a phase of a chained flight, each engine starting from its own

@@ -27,7 +27,7 @@ from typing import Callable
 
 import numpy as np
 
-from cases.loader import ArmCommand, ControllerSpec, Segment
+from rsmcheck.cases import ArmCommand, ControllerSpec, Segment
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.params import Params
 from rsmcheck.trajectories import Quintic

@@ -10,7 +10,7 @@ case's [initial] conditions, or — a case chained onto another's end state
 
 from __future__ import annotations
 
-from cases.loader import Case
+from rsmcheck.cases import Case
 from rsmcheck.errors import InputError
 
 #: the simulation engines, in the order reports list them

@@ -205,7 +205,7 @@ def _by_name(name: str) -> Fault:
 # ---------------------------------------------------------------------------------------
 def probe(fault: Fault) -> dict:
     """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from rsmcheck.compare import check_runs
     from rsmcheck.gate import at_samples, compare_with_golden, golden_path, read_golden, run_jobs
 

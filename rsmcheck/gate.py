@@ -353,7 +353,7 @@ def append_changelog(root: Path, reason: str, entries: Iterable[tuple[str, str, 
 # ---------------------------------------------------------------------------------------
 def gated_cases() -> list:
     """The cases with goldens: every stand-alone case (sequences are gated phase by phase)."""
-    from cases.loader import list_cases, load_case
+    from rsmcheck.cases import list_cases, load_case
 
     return [c for c in (load_case(p) for p in list_cases()) if not c.phases and c.variant(True).has_initial]
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cases.loader import Case
+from rsmcheck.cases import Case
 from rsmcheck.errors import InputError
 from rsmcheck.params import Params
 

@@ -80,8 +80,8 @@ def link_rows(params=None, n_elements: int | None = None) -> list[dict[str, Any]
 
 def modal_case(case):
     """`case` at rest in its initial configuration, undamped, without orbit."""
-    from cases.loader import OrbitSpec
     from exudyn_model.modes import at_rest_undamped
+    from rsmcheck.cases import OrbitSpec
 
     case = at_rest_undamped(case)
     if case.orbit:
@@ -130,9 +130,9 @@ def reference_linear_plant(case, outputs, n_inputs: int = 7, n_modes=None, eps: 
 
 def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n: int = N_ARM_MODES,
              n_modes=None, n_elements: int | None = None) -> list[dict[str, Any]]:
-    from cases.loader import load_case
     from exudyn_model import links
     from exudyn_model.modes import coupled_frequencies
+    from rsmcheck.cases import load_case
 
     rows = []
     for label, case_name, what in configurations:

@@ -29,7 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-from cases.loader import Case
+from rsmcheck.cases import Case
 from rsmcheck.controllers import ProgrammeController, make_controller
 from rsmcheck.engine import Engine, Inputs, Sensors
 from rsmcheck.errors import SimulationDiverged

@@ -85,7 +85,7 @@ def rigid_step_study(cases: Sequence[str] = FEATURE_CASES, substeps: Sequence[in
                      log=None, reference_rtol: float = REFERENCE_RTOL, check_rtol: float = CHECK_RTOL,
                      exudyn_options: dict | None = None) -> dict[str, Any]:
     """Relative differences (compare_runs) per case, observable and Exudyn step."""
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
 
     exudyn_options = dict(exudyn_options or {})
     doc: dict[str, Any] = {"study": "rigid equivalence vs generalized-alpha step", "short": short,
@@ -151,7 +151,7 @@ def rigid_options(case: str) -> dict:
 def rigid_equivalence(cases: Sequence[str] = FEATURE_CASES, out: Path | None = None, log=None) -> dict[str, Any]:
     """Every observable of every feature case (short) in the rigid-equivalence configuration:
     relative error, scale (max of reference range and floor), reference range."""
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
 
     doc: dict[str, Any] = {"study": "rigid equivalence", "tolerance": RIGID_TOLERANCE,
                            "reference_options": RIGID_REFERENCE, "exudyn_options": RIGID_EXUDYN,
@@ -179,8 +179,8 @@ def convergence_study(case_name: str = "flex_arm_step", modes: Sequence[int] = (
                       duration: float | None = None, out: Path | None = None, log=None,
                       observables: Sequence[str] = OBSERVABLES) -> dict[str, Any]:
     """Relative differences per observable for every (reference modes, Exudyn elements)."""
-    from cases.loader import load_case
     from exudyn_model.engine import SUBSTEPS_DEFAULT
+    from rsmcheck.cases import load_case
 
     case = load_case(case_name).variant(short)
     T = duration or case.duration
@@ -215,7 +215,7 @@ def refinement_study(case_name: str, modes: Sequence[int], exudyn: Sequence[tupl
     `params.link.axial_to_bending` (the reference is axially rigid and ignores it)."""
     from dataclasses import replace
 
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from rsmcheck.compare import check_runs
 
     case = load_case(case_name).variant(short)
@@ -260,7 +260,7 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
     whose reference runs are used instead of running the phases with the orbit again."""
     from dataclasses import replace
 
-    from cases.loader import OrbitSpec, load_case
+    from rsmcheck.cases import OrbitSpec, load_case
 
     doc: dict[str, Any] = {"study": "orbit: max_t |with orbit − without| of a phase's short variant, reference",
                            "observables": list(ORBIT_OBSERVABLES), "cases": {}}

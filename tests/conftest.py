@@ -47,7 +47,7 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
     """One engine run in a worker process: (EngineRun or SequenceRun, wall seconds)."""
     import time
 
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from rsmcheck.chain import run_case
     from rsmcheck.compare import _run_one
     from rsmcheck.store import read_run
@@ -70,7 +70,7 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
 def expected_wall(case_name: str, engine: str) -> float:
     """The wall time the case's golden recorded for `engine` (rsmcheck.collect); 0 for a
     case that does not load (the tests themselves report on it).  Only orders the jobs."""
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
     from rsmcheck.collect import expected_wall as recorded
     from rsmcheck.errors import InputError
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 
 
 @pytest.fixture

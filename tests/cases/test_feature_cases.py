@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from cases.loader import list_cases, load_case
 from reference_model.engine import ReferenceEngine
+from rsmcheck.cases import list_cases, load_case
 from rsmcheck.orbit import rocket_mass
 from rsmcheck.runner import run
 

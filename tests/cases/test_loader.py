@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.errors import InputError
 
 VALID = """\

@@ -9,7 +9,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.chain import chained, end_state_path, load_end_state, run_case
 from rsmcheck.engines import make_engine
 from rsmcheck.errors import InputError

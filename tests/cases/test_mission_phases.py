@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from reference_model.engine import ReferenceEngine
+from rsmcheck.cases import load_case
 from rsmcheck.orbit import (
     burn_time,
     circular_state,

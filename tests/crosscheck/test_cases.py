@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import pytest
 
-from cases.loader import list_cases, load_case
+from rsmcheck.cases import list_cases, load_case
 from rsmcheck.compare import check_runs
 
 #: (case, observable) -> why it cannot pass at the case's tolerance, with the measured size

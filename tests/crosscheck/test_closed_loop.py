@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.closed_loop import analyse
 
 

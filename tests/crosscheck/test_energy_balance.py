@@ -25,7 +25,7 @@ import math
 import numpy as np
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.engine import Inputs
 
 TORQUES = np.array([5.0, -10.0, 5.0, -5.0, 10.0, -5.0])

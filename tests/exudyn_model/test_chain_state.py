@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from rsmcheck import chain
+from rsmcheck.cases import load_case
 from rsmcheck.engine import Inputs
 from rsmcheck.engines import make_engine
 from rsmcheck.runner import run

@@ -24,8 +24,8 @@ import math
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from exudyn_model.engine import ExudynEngine
+from rsmcheck.cases import load_case
 from rsmcheck.compare import compare_runs
 from rsmcheck.engine import Inputs
 from rsmcheck.initial import build_initial, rigid_arm

@@ -15,8 +15,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from exudyn_model.modes import at_rest_undamped, coupled_frequencies
+from rsmcheck.cases import load_case
 
 pytestmark = pytest.mark.crosscheck
 

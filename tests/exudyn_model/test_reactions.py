@@ -19,10 +19,10 @@ import math
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from exudyn_model import reactions
 from exudyn_model.engine import ExudynEngine, exu
 from exudyn_model.reactions import ConstraintForces
+from rsmcheck.cases import load_case
 from rsmcheck.engine import Inputs
 from rsmcheck.runner import run
 from exudyn.itemInterface import (  # noqa: E402 — after the engine's import of exudyn

@@ -9,7 +9,7 @@ from typing import Callable
 
 import pytest
 
-from cases.loader import Case, load_case
+from rsmcheck.cases import Case, load_case
 
 
 @pytest.fixture

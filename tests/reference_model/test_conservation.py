@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from reference_model.engine import ReferenceEngine
+from rsmcheck.cases import load_case
 from rsmcheck.engine import Inputs
 from rsmcheck.runner import run
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from reference_model import core
 from reference_model.engine import ReferenceEngine
+from rsmcheck.cases import load_case
 
 
 def _random_state(name: str, seed: int, **options) -> tuple[ReferenceEngine, np.ndarray, np.ndarray]:

@@ -31,9 +31,9 @@ class Rendered:
 
 @pytest.fixture(scope="session")
 def rendered(run_pool, tmp_path_factory) -> Rendered:
-    from cases.loader import load_case
     from pinocchio_check.compare import run_checks
     from report.build import render
+    from rsmcheck.cases import load_case
     from rsmcheck.collect import Collected, source_digest, store_runs, verdict
     from rsmcheck.store import write_json
 

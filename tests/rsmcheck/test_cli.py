@@ -123,7 +123,7 @@ def test_cases_lists_the_shipped_cases(capsys):
     lines = captured.out.splitlines()
     names = {line.split()[0] for line in lines if line.strip()}
     assert {"free_drift", "closed_squeeze"} <= names
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
 
     for name in ("free_drift", "closed_squeeze"):
         line = next(ln for ln in lines if ln.split()[0] == name)
@@ -141,7 +141,7 @@ def test_run_free_drift_short_writes_a_readable_run_file(tmp_path, capsys):
     assert sorted(p.name for p in files_under(out)) == ["free_drift.h5", "free_drift.short.end.json"]
     runs, attrs = read_run(path)
     assert attrs["case_name"] == "free_drift"
-    from cases.loader import load_case
+    from rsmcheck.cases import load_case
 
     case = load_case("free_drift")
     assert attrs["case_hash"] == case.file_hash
@@ -193,7 +193,7 @@ def test_closed_pipe_ends_quietly(argv, buffered):
 
 def test_cases_into_head_1():
     """`rsmcheck cases | head -1`: the first line arrives, then the command ends quietly."""
-    from cases.loader import list_cases
+    from rsmcheck.cases import list_cases
 
     code, first, err = _closed_pipe_run(["cases"], buffered=False, read_first_line=True)
     assert first.split() and first.split()[0].decode() in {p.stem for p in list_cases()}

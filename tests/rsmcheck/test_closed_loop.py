@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.closed_loop import I_BASE, N_INPUTS, closed_loop_exponents, controller_gains, rotor_modes
 
 

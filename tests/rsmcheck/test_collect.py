@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.collect import _current, mission_checks, phase_runs, phase_specs, source_digest, store_runs
 from rsmcheck.compare import check_runs
 from rsmcheck.observables import allocate

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from cases.loader import CompareSpec, list_cases, load_case
+from rsmcheck.cases import CompareSpec, list_cases, load_case
 from rsmcheck.cli import main
 from rsmcheck.compare import (METRICS, SCALE_FLOORS, Check, check_runs, compare_runs, difference,
                               growth_rate, relative_errors)
@@ -27,7 +27,7 @@ def make_run(engine: str, n: int = 5, **values) -> EngineRun:
 
 
 def test_metrics_match_the_loader():
-    import cases.loader as loader
+    import rsmcheck.cases as loader
 
     assert tuple(METRICS) == tuple(loader.METRICS)
 

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from cases.loader import ArmGains, BaseGains, ControllerSpec, Segment, TargetCommand
+from rsmcheck.cases import ArmGains, BaseGains, ControllerSpec, Segment, TargetCommand
 from rsmcheck.controllers import (
     ArmModel,
     ComAlignment,
@@ -183,7 +183,7 @@ def test_thrust_segment_and_freeze():
     s0 = sensors()
     ctl.start(s0)
     q = np.radians([61.0, -120.0, 60.0, -60.0, 120.0, -60.0])
-    from cases.loader import ArmCommand
+    from rsmcheck.cases import ArmCommand
 
     ctl.enter(Segment(name="burn", duration=10.0, thrust=True, arm1=ArmCommand(mode="freeze"),
                       arm2=ArmCommand(mode="hold")), sensors(q=q))

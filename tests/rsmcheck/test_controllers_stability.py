@@ -18,9 +18,9 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from cases.loader import Segment, load_case
 from reference_model import core
 from reference_model.engine import ReferenceEngine
+from rsmcheck.cases import Segment, load_case
 from rsmcheck.closed_loop import at_rest
 from rsmcheck.controllers import ProgrammeController
 

@@ -12,8 +12,8 @@ import h5py
 import numpy as np
 import pytest
 
-from cases.loader import load_case
 from reference_model.engine import ReferenceEngine
+from rsmcheck.cases import load_case
 from rsmcheck.cli import main
 from rsmcheck.gate import (
     PERTURBATION,

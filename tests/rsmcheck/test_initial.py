@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cases.loader import load_case
+from rsmcheck.cases import load_case
 from rsmcheck.errors import InputError
 from rsmcheck.initial import build_initial, rigid_arm
 

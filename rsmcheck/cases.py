@@ -126,7 +126,10 @@ from typing import Any, Callable, Mapping
 from rsmcheck.errors import InputError
 from rsmcheck.params import Params
 
-CASES_DIR = Path(__file__).resolve().parent
+#: the case files: the repository's cases/ folder, next to this package.  rsmcheck is used
+#: from a checkout (editable install, `make venv`), so the TOML files are read where they
+#: are and are not package data; a wheel installed elsewhere would not carry them.
+CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
 
 #: observables a [compare] table may name (docs/physics.md §11), without importing numpy-heavy modules
 OBSERVABLE_NAMES = (
