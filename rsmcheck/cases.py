@@ -5,113 +5,10 @@ duration, controller and motion programme, scheduled events, solver settings, pa
 overrides, the observables engines are compared on with their tolerances, and a `short`
 variant for CI.  Everything is checked before anything runs: an unknown key, a wrong type,
 an out-of-range or inconsistent value raises `InputError(file, key, reason)`; the command
-line turns it into one line and exit 2.  docs/cases.md describes every case.
+line turns it into one line and exit 2.
 
-Format (every key optional unless marked):
-
-    name = "free_drift"              # required, equal to the file stem
-    description = "..."              # required, one line
-    duration = 20.0                  # required [s]
-    short_duration = 5.0             # [s] shorthand for [short] duration
-    start_from = "p1_transport"      # chain: start from the end state stored by a run of
-                                     # that case (rsmcheck.chain); [initial] is then the
-                                     # stand-alone start (omit it: the case only chains)
-
-    [initial]
-    base_pose = [x, y, θ]            # [m, m, rad]
-    base_rate = [ẋ, ẏ, θ̇]
-    joint_angles_deg = [6 values]    # arm 1 then arm 2, base outward
-    joint_rates = [6 values]         # [rad/s]
-    grasp = [1, 0]                   # which arms hold the target at t = 0
-    wrist_angle_deg = 0.0            # ψ of the first holding arm
-    wrist_rate = 0.0                 # ψ̇ of the first holding arm [rad/s]
-    held_points = [[x, y], [x, y]]   # points held at t = 0, target frame about its
-                                     # geometric centre (default: params.geometry grasps)
-    target_pose = [x, y, θ]          # only when no arm holds the target
-    target_rate = [ẋ, ẏ, θ̇]
-
-    [orbit]
-    enabled = false                  # tidal gravity about the co-moving point O
-    altitude = 700e3                 # [m] circular orbit at t = 0 (default params.orbit)
-    align = "fixed" | "retrograde"   # O on +X_I, or the orbit phase at which the
-                                     # velocity points along −x_B (burns start aligned)
-    centre_on_com = true             # O at the system COM, moving with it
-
-    [controller]
-    kind = "none" | "constant" | "programme"
-    motor_torques = [6 values]       # "constant": held τ_m [N·m]
-    base_torque = 0.0
-    ramp_time = 0.0                  # "constant": brought in as (1 − cos(πt/T))/2 over T [s]; 0 = a step
-    feedback = "measured" | "kinematic"   # "programme": end-effector position in e_EE
-    rate_filter_hz = 0.0             # first-order low-pass on θ̇_J in eq. (14); 0 = none
-    gains = "..."                    # one sentence: how the gains were chosen
-    [controller.base]                # eq. (13)
-    kp = 0.0                         # [N·m/rad]
-    kd = 0.0                         # [N·m·s/rad]
-    [controller.arm1]                # eq. (14), same for arm2
-    kp = [kx, ky, kφ]                # on e_EE = (x, y, φ) [N/m, N/m, N·m/rad]
-    kd = [3 values]                  # on θ̇_J [N·m·s/rad]
-
-    [[segment]]                      # "programme": the motion programme, in order
-    name = "transport"               # required
-    duration = 600.0                 # required [s]; the last segment lasts to the end
-    until = "capture"                # end early when this segment's capture happens
-    settle = 0.0                     # [s] after the capture before the segment ends
-    thrust = false                   # apogee motor on during the segment
-    base = "hold"                    # hold | freeze | angle | retrograde | off
-    base_angle_deg = 0.0             # base = "angle"
-    release = [1]                    # arms released at the segment start
-    capture = { arm = 2, point = "grasp2" }   # IF conditions evaluated in the segment
-    arm1 = { mode = "hold" }         # hold | freeze | move | approach | carry | off | torque
-    arm2 = { mode = "move", to = [x, y, φ_deg], time = 600.0 }
-    target = { mode = "move", to = [x, y, θ_deg] }   # move | push | com_align
-    control_period = 0.02            # [s] a longer sample for a quiet segment (a coast)
-
-    [[release]]                      # scheduled releases (time-based)
-    time = 1.0
-    arm = 1
-
-    [capture]
-    arm = 2                          # arm whose gap is reported and that may capture
-    enabled = false                  # evaluate the IF conditions each sample
-    point = "grasp2"                 # designated point ("grasp1", "grasp2" or [x, y])
-
-    [solver]
-    control_period = 1e-3            # [s] controller sample, zero-order hold
-    output_period = 1e-2             # [s] observable sampling, multiple of control_period
-    rtol = 1e-9
-    integrator = "dopri5"            # the reference's: dopri5 | trbdf2 (stiff, quiet phases)
-
-    [reference]
-    n_modes = 2                      # eigenmodes per link (0 = rigid), int or 6 ints
-    static_modes = true              # add the two end-couple correction shapes per link
-    h_max = 2e-4                     # [s] largest step (default 0.05 DP5, 1.0 TR-BDF2); needs why
-    why = "..."                      # required with h_max: the study behind it
-
-    [exudyn]                         # the Exudyn engine's discretisation for this case
-    substeps = 32                    # generalized-α steps per control period (default 2)
-    n_elements = 8                   # ANCF elements per link (default 8)
-    constraints = "index2"           # index3 (default) | index2 (Newmark, velocity level)
-    restart_threshold = 0.0          # input jump restarting the integrator (default 0.01)
-    newton_atol = 1e-3               # [N] absolute Newton tolerance (default 1000·ε·EA)
-    why = "..."                      # required with any setting: the study behind it
-
-    [params]                         # overrides of rsmcheck.params.Params, by section
-
-    [compare.OBSERVABLE]             # engines compared on this observable
-    tolerance = 1e-3                 # required, > 0, in the observable's unit
-    why = "..."                      # required: one sentence justifying the tolerance
-    metric = "max_abs"               # max_abs | rms | final | growth
-    window = [34.0, 45.0]            # growth only (required there): fit interval [s]
-
-    [short]                          # the --short variant: replaces these keys
-    duration = 5.0                   # (duration, segment, release, capture, controller,
-    [[short.segment]] ...            #  solver, compare); the mechanics stay the same;
-                                     # without [[short.segment]] the full programme is
-                                     # flown and cut at the short duration
-
-A sequence case (the mission) has only `name`, `description`, `phases` (case names, each
-starting from the previous one's end state) and `short_phases` (the sequence for --short).
+The format — every key, its type, unit and default — is described once, in docs/cases.md
+§1; docs/cases.md §4 says what each case is for.
 """
 
 from __future__ import annotations
@@ -124,6 +21,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from rsmcheck.errors import InputError
+from rsmcheck.observables import NAMES as OBSERVABLE_NAMES  # what a [compare] table may name
 from rsmcheck.params import Params
 
 #: the case files: the repository's cases/ folder, next to this package.  rsmcheck is used
@@ -131,18 +29,10 @@ from rsmcheck.params import Params
 #: are and are not package data; a wheel installed elsewhere would not carry them.
 CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
 
-#: observables a [compare] table may name (docs/physics.md §11), without importing numpy-heavy modules
-OBSERVABLE_NAMES = (
-    "time", "base_pose_I", "target_pose_B", "ee1_pos_B", "ee2_pos_B", "ee2_speed",
-    "capture_gap_B", "com_pos_B", "joint_angles", "joint_frame_angles", "wrist_angles",
-    "motor_angles", "motor_torques",
-    "base_torque", "link_deflection", "target_attitude", "reaction_forces_I",
-    "constraint_residual", "grasp_state", "energy", "momentum_I", "altitude",
-    "target_rel_lvlh", "system_mass",
-)
 ARM_MODES = ("hold", "freeze", "move", "approach", "carry", "off", "torque")
 TARGET_MODES = ("move", "push", "com_align")
 BASE_MODES = ("hold", "freeze", "angle", "retrograde", "off")
+#: metrics a [compare] entry may ask for; rsmcheck.compare.difference computes each
 METRICS = ("max_abs", "rms", "final", "growth")
 #: top-level keys a [short] table may replace
 SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare", "exudyn")

@@ -45,13 +45,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from rsmcheck.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
 from rsmcheck.engines import make_engine
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
 from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
 
-#: metrics a [compare] entry may ask for (rsmcheck.cases.METRICS names the same ones)
-METRICS = ("max_abs", "rms", "final", "growth")
 
 #: observables that are Lagrange multipliers of the grasp constraints, and the events that
 #: switch those constraints: at a switch sample they are one-sided limits that depend on

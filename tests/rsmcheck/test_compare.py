@@ -26,10 +26,17 @@ def make_run(engine: str, n: int = 5, **values) -> EngineRun:
     return EngineRun(engine=engine, observables=obs)
 
 
-def test_metrics_match_the_loader():
-    import rsmcheck.cases as loader
-
-    assert tuple(METRICS) == tuple(loader.METRICS)
+def test_every_metric_a_case_may_ask_for_is_computed():
+    """rsmcheck.cases.METRICS (what the loader accepts) is what `difference` computes."""
+    t = np.arange(0.0, 2.0, 0.01)
+    obs = np.exp(0.1 * t)[:, None] * np.ones((1, 6))
+    ref, other = make_run("reference", n=t.size, joint_angles=obs), make_run("exudyn", n=t.size, joint_angles=2 * obs)
+    ref.observables["time"] = other.observables["time"] = t
+    for metric in METRICS:
+        err, _, _ = difference(ref, other, "joint_angles", metric, window=(0.5, 1.5))
+        assert math.isfinite(err), metric
+    with pytest.raises(ValueError, match="unknown metric"):
+        difference(ref, other, "joint_angles", "median")
 
 
 def test_max_abs_rms_final():
