@@ -31,12 +31,12 @@ from typing import Any, Sequence
 
 import jinja2
 
-from report import paper
-from report.plots import comparison_figure, run_marks
 from rsmcheck.cases import Case, list_cases, load_case
 from rsmcheck.collect import MODES, VERDICT, phase_runs
 from rsmcheck.errors import InputError
 from rsmcheck.observables import BY_NAME
+from rsmcheck.report import paper
+from rsmcheck.report.plots import comparison_figure, run_marks
 from rsmcheck.store import EngineRun, read_run, write_text
 
 ROOT = Path(__file__).resolve().parent.parent

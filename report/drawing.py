@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-from report.plots import DASH
 from rsmcheck.params import Params
+from rsmcheck.report.plots import DASH
 from rsmcheck.store import EngineRun
 
 ARM_COLORS = {1: "#1f77b4", 2: "#d62728"}

@@ -15,10 +15,10 @@ from typing import Callable
 
 import numpy as np
 
-from report.drawing import snapshot_figure
-from report.plots import comparison_figure, run_marks
 from rsmcheck.collect import phase_runs
 from rsmcheck.observables import BY_NAME
+from rsmcheck.report.drawing import snapshot_figure
+from rsmcheck.report.plots import comparison_figure, run_marks
 from rsmcheck.store import EngineRun
 
 

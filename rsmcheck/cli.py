@@ -69,7 +69,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
         failures = list(res.failures)
     else:
         failures = []
-    from report.build import render
+    from rsmcheck.report.build import render
 
     path = render(folder, out, args.cases or None)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)"

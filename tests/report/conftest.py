@@ -32,9 +32,9 @@ class Rendered:
 @pytest.fixture(scope="session")
 def rendered(run_pool, tmp_path_factory) -> Rendered:
     from pinocchio_check.compare import run_checks
-    from report.build import render
     from rsmcheck.cases import load_case
     from rsmcheck.collect import Collected, source_digest, store_runs, verdict
+    from rsmcheck.report.build import render
     from rsmcheck.store import write_json
 
     folder = tmp_path_factory.mktemp("report")

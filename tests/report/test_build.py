@@ -1,4 +1,4 @@
-"""report.build: the page rendered from stored runs (tests/report/conftest.py)."""
+"""rsmcheck.report.build: the page rendered from stored runs (tests/report/conftest.py)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import html
 import json
 import re
 
-from report.build import departures_table, fmt, render, verdict_rows
 from rsmcheck.compare import check_runs
+from rsmcheck.report.build import departures_table, fmt, render, verdict_rows
 
 SECTIONS = ("verdict", "provenance", "departures", "mission", "paper", "cases", "pinocchio", "modes", "studies",
             "speed", "faults")
