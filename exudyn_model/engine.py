@@ -72,6 +72,7 @@ from exudyn_model import reactions  # noqa: E402
 from rsmcheck.cases import Case  # noqa: E402
 from rsmcheck.engine import Inputs, Sensors  # noqa: E402
 from rsmcheck.errors import SimulationDiverged  # noqa: E402
+from rsmcheck.geometry import rot  # noqa: E402
 from rsmcheck.initial import build_initial  # noqa: E402
 from rsmcheck.params import Params  # noqa: E402
 from rsmcheck.store import package_versions  # noqa: E402
@@ -96,11 +97,6 @@ NEWTON_ATOL_RIGID = 1e-10
 #: 0 restarts at every change (second order again, one factorisation per period)
 RESTART_THRESHOLD_DEFAULT = 0.01
 N_GAUSS_FIELD = 4  # Gauss points per element for the tidal field, energy and momentum
-
-
-def _rot(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
 
 
 def _cross(a, b) -> float:
@@ -245,7 +241,7 @@ class ExudynEngine:
         for k in range(2):
             th, om = float(init.base_pose[2]), float(init.base_rate[2])
             mount = np.asarray(p.geometry.mount_B(k + 1), float)
-            pin = rB + _rot(th) @ mount
+            pin = rB + rot(th) @ mount
             vel = vB + om * _perp(pin - rB)
             parent_marker = mbs.AddMarker(MarkerBodyPosition(bodyNumber=self.base, localPosition=[*mount, 0.0]))
             for s in range(3):
@@ -534,7 +530,7 @@ class ExudynEngine:
         psi, psid = self._section_joint_angles(q, v)
         rE, rEd = self._end_effectors(q, v)
         com, m = self._com(q)
-        AB_T = _rot(thB).T
+        AB_T = rot(thB).T
         return Sensors(
             time=self.t, base_pose_I=q[self.i_base].copy(), base_rate_I=v[self.i_base].copy(),
             joint_angles=psi, joint_rates=psid,
@@ -809,7 +805,7 @@ class ExudynEngine:
         q, v = self._qv()
         rE, _ = self._end_effectors(q, v)
         XT = q[self.i_target]
-        self.rho_G[k] = _rot(XT[2]).T @ (rE[k] - XT[:2])
+        self.rho_G[k] = rot(XT[2]).T @ (rE[k] - XT[:2])
         mbs = self.mbs
         mbs.SetMarkerParameter(self.grasp_markers[k], "localPosition", [*self.rho_G[k], 0.0])
         mbs.SetObjectParameter(self.grasp_joints[k], "activeConnector", True)
@@ -895,10 +891,10 @@ class ExudynEngine:
         s = self.sensors()
         rB = q[self.i_base[:2]]
         thB = q[self.i_base[2]]
-        AB_T = _rot(thB).T
+        AB_T = rot(thB).T
         XT = q[self.i_target]
         rE, rEd = s.ee_pos_I, s.ee_vel_I
-        cap = XT[:2] + _rot(XT[2]) @ self.capture_point
+        cap = XT[:2] + rot(XT[2]) @ self.capture_point
         # grasp forces by the index-1 solve at this sample with the inputs held from it
         # (exudyn_model.reactions): the integrator's index-3 multipliers have a round-off
         # floor ∝ 1/h² (docs/exudyn.md §6) and belong to the last period's inputs
@@ -906,7 +902,7 @@ class ExudynEngine:
         residual = np.zeros(4)
         for k in range(2):
             if self.grasp_on[k]:
-                residual[2 * k:2 * k + 2] = rE[k] - (XT[:2] + _rot(XT[2]) @ self.rho_G[k])
+                residual[2 * k:2 * k + 2] = rE[k] - (XT[:2] + rot(XT[2]) @ self.rho_G[k])
         deflection = np.zeros(6)
         for it in self.links:
             if not it.rigid:

@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from exudyn_model import links
-from exudyn_model.links import analytic_frequencies, link_frequencies  # noqa: F401  (re-exported)
+from exudyn_model.links import link_frequencies  # noqa: F401  (re-exported)
 
 
 def at_rest_undamped(case, params=None):

@@ -80,6 +80,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from rsmcheck.geometry import rot
 from rsmcheck.params import Params
 
 #: Reference-coordinate names of the RSM, in the order of q.
@@ -90,12 +91,6 @@ LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 #: How far (m, m/s) a given reference state may be from satisfying an active grasp.
 CONSISTENCY_TOL = 1e-8
-
-
-def rot2(theta: float) -> np.ndarray:
-    """Planar rotation matrix R(θ) (2×2): components in the rotated frame → inertial."""
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s], [s, c]])
 
 
 def _xyz(p2) -> np.ndarray:
@@ -149,7 +144,7 @@ class Chart:
         for i, _, iv in self.scalar:
             T[iv, i] = 1.0
         for ix, iy, ith, _, iv in self.planar:
-            Rt = rot2(y[ith]).T
+            Rt = rot(y[ith]).T
             T[iv : iv + 2, [ix, iy]] = Rt
             T[iv + 2, ith] = 1.0
         return T

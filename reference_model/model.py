@@ -18,6 +18,7 @@ import numpy as np
 
 from reference_model import core
 from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
+from rsmcheck.geometry import rot
 from rsmcheck.params import Params
 
 N_MAX_MODES = 6
@@ -305,8 +306,7 @@ class ReferenceModel:
             n = self.layout.n_modes[i]
             sl = self.layout.modes(i)
             s1 = np.array([0.5 * p.link.mass * p.link.length, phi_bar[i, cfg.basis[i], :n] @ q[sl]])
-            c, s = np.cos(th[i]), np.sin(th[i])
-            A = np.array([[c, -s], [s, c]])
+            A = rot(th[i])
             pos += p.link.mass * R[i] + A @ s1
             jac[:, :nq] += p.link.mass * JR[i] + np.outer(A @ np.array([-s1[1], s1[0]]), Jth[i])
             jac[:, sl] += np.outer(A[:, 1], phi_bar[i, cfg.basis[i], :n])

@@ -6,18 +6,11 @@ suffix says otherwise (`_B`: base frame about the base COM).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from reference_model import core
 from reference_model.model import Configuration, ReferenceModel
-
-
-def rotation(a: float) -> np.ndarray:
-    """A(a): the 2×2 rotation by a [rad]."""
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
+from rsmcheck.geometry import rot
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> float:
@@ -53,7 +46,7 @@ def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) 
         n = lay.n_modes[i]
         b = cfg.basis[i]
         a, ad = q[lay.modes(i)], qd[lay.modes(i)]
-        A = rotation(th[i])
+        A = rot(th[i])
         s1 = link_s1(model, cfg, q, i)
         As1 = A @ s1
         ey = A[:, 1]
@@ -109,7 +102,7 @@ def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> fl
         n = lay.n_modes[i]
         a = q[lay.modes(i)]
         basis = model.bases[i][int(cfg.basis[i])]
-        A = rotation(th[i])
+        A = rot(th[i])
         for xg, wg, ph in zip(basis.x_gauss, basis.w_gauss, basis.phi_gauss):
             rel = R[i] + A @ np.array([xg, ph[:n] @ a])
             e += prm.link.rho_a * wg * core._tidal_potential(rO, rel)
@@ -135,7 +128,7 @@ def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tupl
     s = mB * q[0:2] + prm.target.mass * x[lay.target][0:2]
     m = mB + prm.target.mass
     for i in range(core.N_LINKS):
-        s = s + prm.link.mass * R[i] + rotation(th[i]) @ link_s1(model, cfg, q, i)
+        s = s + prm.link.mass * R[i] + rot(th[i]) @ link_s1(model, cfg, q, i)
         m += prm.link.mass
     return s / m, m
 
@@ -154,7 +147,7 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
     _, Rc = core.solve_constrained(Mg, f, A, Bs, model.arrays)
     th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = model.kinematics(q, qd, cfg)
-    AB_T = rotation(q[2]).T
+    AB_T = rot(q[2]).T
     rB = q[0:2]
     com, msys = system_com(model, x, cfg)
     reaction = np.zeros(4)
@@ -165,7 +158,7 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
             reaction[2 * k:2 * k + 2] = Rc[row:row + 2]
             residual[2 * k:2 * k + 2] = phi[row:row + 2]
             row += 2
-    cap = XT[0:2] + rotation(XT[2]) @ capture_point_T
+    cap = XT[0:2] + rot(XT[2]) @ capture_point_T
     deflection = np.zeros(6)
     for i in range(core.N_LINKS):
         deflection[i] = model.bases[i][int(cfg.basis[i])].phi_mid @ q[lay.modes(i)]

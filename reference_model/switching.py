@@ -16,7 +16,7 @@ import numpy as np
 from reference_model import core
 from reference_model.beam_modes import PF, PP, quadrature
 from reference_model.model import Configuration, ReferenceModel
-from reference_model.observe import rotation
+from rsmcheck.geometry import rot
 
 
 @dataclass(frozen=True)
@@ -127,11 +127,11 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     w_kept = phi_new @ x[lay.q][sl] if n else np.zeros_like(xi)
     wd_kept = phi_new @ x[lay.qd][sl] if n else np.zeros_like(xi)
     th_new = th_old + delta
-    r = (rotation(th_old) @ np.array([-om * w, om * xi + wd])
-         - rotation(th_new) @ np.array([-om_new * w_kept, om_new * xi + wd_kept]))
+    r = (rot(th_old) @ np.array([-om * w, om * xi + wd])
+         - rot(th_new) @ np.array([-om_new * w_kept, om_new * xi + wd_kept]))
     _, _, _, _, JR, Jth, *_ = model.kinematics(x[lay.q], x[lay.qd], cfg)
     # ∂ṙ/∂q̇_i = ∂R/∂q_i + ∂θ/∂q_i A(θ')(−w', ξ) + [i = a'_j] A(θ') e_y φ_j
-    turn = rotation(th_new) @ np.array([-w_kept, xi])
+    turn = rot(th_new) @ np.array([-w_kept, xi])
     n_new = np.array([-math.sin(th_new), math.cos(th_new)])
     dropped = np.zeros(lay.ny)
     dropped[:lay.nq] = (JR[link].T @ (rho * (r @ wq))

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from rsmcheck.geometry import arm_pins, rot
 from rsmcheck.params import Params
 from rsmcheck.report.plots import DASH
 from rsmcheck.store import EngineRun
@@ -24,15 +25,10 @@ ARM_COLORS = {1: "#1f77b4", 2: "#d62728"}
 N_POINTS = 21  # points along a drawn link
 
 
-def _rot(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
-
-
 def _square(centre: np.ndarray, side: float, angle: float) -> np.ndarray:
     h = 0.5 * side
     corners = np.array([[-h, -h], [h, -h], [h, h], [-h, h], [-h, -h]])
-    return centre + corners @ _rot(angle).T
+    return centre + corners @ rot(angle).T
 
 
 def magnification(runs: dict[str, EngineRun], indices: dict[str, list[int]], length: float) -> float:
@@ -67,23 +63,23 @@ def robot_traces(run: EngineRun, i: int, params: Params, k: float, show_legend: 
     w_mid = np.asarray(o["link_deflection"][i], float)
     x = np.linspace(0.0, L, N_POINTS)
     for arm in (1, 2):
-        pin = np.asarray(g.mount_B(arm), float)
+        mount = g.mount_B(arm)
+        pins = np.array(arm_pins(float(mount[0]), float(mount[1]), 0.0, L, theta[3 * (arm - 1):3 * arm]))
         angle = 0.0
-        pts = [pin[None, :]]
+        pts = [pins[0][None, :]]
         for j in range(3):
             angle += theta[3 * (arm - 1) + j]
             shape = np.stack([x, k * w_mid[3 * (arm - 1) + j] * np.sin(math.pi * x / L)], axis=1)
-            pts.append(pin + shape[1:] @ _rot(angle).T)
-            pin = pin + L * np.array([math.cos(angle), math.sin(angle)])
+            pts.append(pins[j] + shape[1:] @ rot(angle).T)
         add(np.concatenate(pts), f"arm {arm}", ARM_COLORS[arm], 3.0)
         ee = np.asarray(o[f"ee{arm}_pos_B"][i], float)[None, :]
         add(ee, f"end effector {arm} (observable)", ARM_COLORS[arm], mode="markers",
             marker={"symbol": "circle-open", "size": 9, "color": ARM_COLORS[arm]})
     tx, ty, ta = (float(v) for v in o["target_pose_B"][i])
     com = np.array([tx, ty])
-    centre = com - _rot(ta) @ np.asarray(g.target_com_offset_T, float)
+    centre = com - rot(ta) @ np.asarray(g.target_com_offset_T, float)
     add(_square(centre, params.target.side, ta), "target", "#2ca02c")
-    grasp = np.array([com + _rot(ta) @ np.asarray(g.grasp_T(arm), float) for arm in (1, 2)])
+    grasp = np.array([com + rot(ta) @ np.asarray(g.grasp_T(arm), float) for arm in (1, 2)])
     add(grasp, "grasp points", "#2ca02c", mode="markers", marker={"symbol": "x", "size": 8, "color": "#2ca02c"})
     add(com[None, :], "target COM", "#2ca02c", mode="markers", marker={"symbol": "cross", "size": 7})
     return traces

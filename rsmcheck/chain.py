@@ -35,7 +35,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -45,6 +44,7 @@ from rsmcheck.cases import Case, load_case
 from rsmcheck.engine import Inputs
 from rsmcheck.engines import make_engine
 from rsmcheck.errors import InputError
+from rsmcheck.geometry import rot
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun, Event, Phase, write_run, write_text
 
@@ -54,11 +54,6 @@ RIGID_KEYS = ("base_pose", "base_rate", "joint_angles", "joint_rates", "joint_fr
               "joint_frame_rates", "motor_angles", "motor_rates",
               "target_pose", "target_rate", "grasp", "held_points", "orbit_r", "orbit_v", "m_used",
               "com_I", "com_vel_I", "t_end")
-
-
-def _rot(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
 
 
 # ---------------------------------------------------------------------------------------
@@ -71,8 +66,8 @@ def rigid_state(engine, params) -> dict[str, Any]:
     held = np.zeros((2, 2))
     for k in range(2):
         # the held point: where the end effector is on the target (≡ ρ_G up to φ_T)
-        held[k] = _rot(s.target_pose_I[2]).T @ (s.ee_pos_I[k] - s.target_pose_I[:2])
-    com_I = s.base_pose_I[:2] + _rot(s.base_pose_I[2]) @ s.com_pos_B
+        held[k] = rot(s.target_pose_I[2]).T @ (s.ee_pos_I[k] - s.target_pose_I[:2])
+    com_I = s.base_pose_I[:2] + rot(s.base_pose_I[2]) @ s.com_pos_B
     m_total0 = params.base.mass + params.target.mass + 6 * params.link.mass
     mass = float(s.system_mass)
     return {

@@ -29,6 +29,7 @@ import numpy as np
 
 from rsmcheck.cases import ArmCommand, ControllerSpec, Segment
 from rsmcheck.engine import Inputs, Sensors
+from rsmcheck.geometry import arm_jacobian, arm_pins, rot
 from rsmcheck.params import Params
 from rsmcheck.trajectories import Quintic
 
@@ -41,11 +42,6 @@ def saturate(inputs: Inputs, params: Params) -> Inputs:
     tb = params.actuators.torque_max
     return Inputs(tau_m=np.minimum(np.maximum(inputs.tau_m, -tm), tm),
                   tau_B=min(max(float(inputs.tau_B), -tb), tb), thrust=inputs.thrust)
-
-
-def _rot(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
 
 
 def wrap_near(angle: float, reference: float) -> float:
@@ -71,15 +67,7 @@ class ArmModel:
 
     def _pins(self, q) -> list[tuple[float, float]]:
         """The four pins as (x, y) floats (plain arithmetic: called every control sample)."""
-        x, y = float(self.mount[0]), float(self.mount[1])
-        th = 0.0
-        out = [(x, y)]
-        for s in range(3):
-            th += float(q[s])
-            x += self.length * math.cos(th)
-            y += self.length * math.sin(th)
-            out.append((x, y))
-        return out
+        return arm_pins(float(self.mount[0]), float(self.mount[1]), 0.0, self.length, q)
 
     def pins(self, q) -> np.ndarray:
         """The four pins (mount, elbows, end effector), base frame, rows."""
@@ -91,11 +79,7 @@ class ArmModel:
 
     def jacobian(self, q) -> np.ndarray:
         """Column s: ∂(x, y, φ)/∂θ_Js = (−(e − p_s)_y, (e − p_s)_x, 1), e the end effector."""
-        pins = self._pins(q)
-        ex, ey = pins[3]
-        return np.array([[-(ey - pins[0][1]), -(ey - pins[1][1]), -(ey - pins[2][1])],
-                         [ex - pins[0][0], ex - pins[1][0], ex - pins[2][0]],
-                         [1.0, 1.0, 1.0]])
+        return arm_jacobian(self._pins(q), attitude=True)
 
     def inverse(self, goal, guess, tol: float = 1e-12, iterations: int = 100) -> np.ndarray:
         """Joint angles reaching pose `goal` = (x, y, φ) (Newton from `guess`)."""
@@ -210,7 +194,7 @@ class Approach(ArmReference):
         self.t0, self.duration = t0, duration
 
     def point_B(self, m: Measured) -> np.ndarray:
-        return m.target_B[:2] + _rot(m.target_B[2]) @ self.point_T
+        return m.target_B[:2] + rot(m.target_B[2]) @ self.point_T
 
     def __call__(self, t, m):
         from rsmcheck.trajectories import quintic
@@ -233,7 +217,7 @@ class Held(ArmReference):
         return self._ee(self.target_ref(t))
 
     def _ee(self, x):
-        p = x[:2] + _rot(x[2]) @ self.rho
+        p = x[:2] + rot(x[2]) @ self.rho
         return np.array([p[0], p[1], x[2] - self.psi0])
 
     def goal(self):
@@ -334,7 +318,7 @@ class ProgrammeController:
             return Approach(m.ee_B[k], point, phi, t0, cmd.time or seg.duration)
         if mode == "carry":
             # the end effector follows the target's desired pose at its current held point
-            rho = _rot(m.target_B[2]).T @ (m.ee_B[k, :2] - m.target_B[:2])
+            rho = rot(m.target_B[2]).T @ (m.ee_B[k, :2] - m.target_B[:2])
             psi0 = m.target_B[2] - m.ee_B[k, 2]
             return Held(target_ref, rho, psi0)
         raise ValueError(f"unknown arm mode {mode!r}")  # pragma: no cover - the loader checks

@@ -30,6 +30,7 @@ import numpy as np
 
 from rsmcheck.cases import Case
 from rsmcheck.errors import InputError
+from rsmcheck.geometry import rigid_arm, rot
 from rsmcheck.params import Params
 
 
@@ -48,32 +49,6 @@ class InitialConfiguration:
     motor_angles: np.ndarray | None = None  # None: at the joint angles (springs relaxed)
     motor_rates: np.ndarray | None = None  # None: at the joint rates
     m_used: float = 0.0  # propellant already burnt [kg]
-
-
-def _rot(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
-
-
-def rigid_arm(params: Params, base_pose, base_rate, angles, rates, arm: int):
-    """End effector position, velocity, terminal frame angle and rate, and the 2×3 Jacobian
-    of the end effector w.r.t. the arm's joint angles, for undeformed links."""
-    L = params.link.length
-    th = base_pose[2]
-    om = base_rate[2]
-    p = np.asarray(base_pose[:2], float) + _rot(th) @ np.asarray(params.geometry.mount_B(arm))
-    v = np.asarray(base_rate[:2], float) + om * np.array([-(p - base_pose[:2])[1], (p - base_pose[:2])[0]])
-    pins = []
-    for s in range(3):
-        pins.append(p.copy())
-        th = th + angles[s]
-        om = om + rates[s]
-        d = L * np.array([math.cos(th), math.sin(th)])
-        p = p + d
-        v = v + om * np.array([-d[1], d[0]])
-    # column s: ∂r_EE/∂θ_Js = e_z × (r_EE − r_pin,s)
-    jac = np.array([[-(p - c)[1], (p - c)[0]] for c in pins]).T
-    return p, v, th, om, jac
 
 
 def build_initial(case: Case, params: Params | None = None) -> InitialConfiguration:
@@ -100,7 +75,7 @@ def build_initial(case: Case, params: Params | None = None) -> InitialConfigurat
         p, v, th3, om3, _ = rigid_arm(params, base_pose, base_rate, q[3 * k:3 * k + 3], qd[3 * k:3 * k + 3], k + 1)
         thT = th3 + math.radians(spec.wrist_angle_deg)
         omT = om3 + spec.wrist_rate
-        rT = p - _rot(thT) @ rho_G[k]
+        rT = p - rot(thT) @ rho_G[k]
         lever = rT - p
         vT = v + omT * np.array([-lever[1], lever[0]])
         target_pose = np.array([rT[0], rT[1], thT])
@@ -151,7 +126,7 @@ def rigid_com(params: Params, init: InitialConfiguration) -> tuple[np.ndarray, n
         k = 3 * (arm - 1)
         th = init.base_pose[2]
         om = init.base_rate[2]
-        p = init.base_pose[:2] + _rot(th) @ np.asarray(params.geometry.mount_B(arm), float)
+        p = init.base_pose[:2] + rot(th) @ np.asarray(params.geometry.mount_B(arm), float)
         pv = init.base_rate[:2] + om * _perp(p - init.base_pose[:2])
         for j in range(3):
             th += init.joint_angles[k + j]
@@ -203,7 +178,7 @@ def place_on_orbit(case: Case, params: Params, init: InitialConfiguration, com: 
 
 def _close_arm2(params, base_pose, base_rate, guess, target_pose, target_rate, rho2, where):
     """Joint angles/rates of arm 2 that put its end effector on grasp point 2 (least norm)."""
-    goal = target_pose[:2] + _rot(target_pose[2]) @ rho2
+    goal = target_pose[:2] + rot(target_pose[2]) @ rho2
     lever = goal - target_pose[:2]
     goal_v = target_rate[:2] + target_rate[2] * np.array([-lever[1], lever[0]])
     a = np.array(guess, float)

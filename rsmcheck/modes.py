@@ -4,7 +4,7 @@ Links (one link, basis PP = pinned-pinned, PF = pinned-free, modes 1–2):
 
 * analytic: Euler–Bernoulli, f_j = (β_j L)² sqrt(EI/ρA) / (2π L²), with EI derived from
   Table 2's PP f1 (docs/physics.md §2; `rsmcheck.params`), βL = jπ (PP) or the roots of
-  tan βL = tanh βL (PF), computed here;
+  tan βL = tanh βL (PF), from `rsmcheck.beams`;
 * reference: the generalised eigenvalues of the reference's modal stiffness and mass
   matrices K_ff, M_ff (`reference_model.beam_modes.modal_basis`, quadrature of the scaled
   shapes: it checks the shapes and integrals the reference simulates with);
@@ -36,19 +36,6 @@ CONFIGURATIONS = (
 N_ARM_MODES = 6
 
 
-def analytic_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
-    from scipy.optimize import brentq
-
-    link = params.link
-    if basis == "PP":
-        roots = [j * math.pi for j in range(1, n + 1)]
-    else:
-        roots = [brentq(lambda b: math.tan(b) - math.tanh(b), (j + 0.25) * math.pi - 0.3,
-                        (j + 0.25) * math.pi + 1e-9, xtol=1e-15) for j in range(1, n + 1)]
-    c = math.sqrt(link.ei / link.rho_a)
-    return np.array([b * b * c / (2 * math.pi * link.length**2) for b in roots])
-
-
 def reference_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
     from scipy.linalg import eigh
 
@@ -62,13 +49,14 @@ def reference_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
 
 def link_rows(params=None, n_elements: int | None = None) -> list[dict[str, Any]]:
     from exudyn_model import links
+    from rsmcheck.beams import analytic_frequencies
     from rsmcheck.params import TABLE2_HZ, Params
 
     params = params or Params()
     n_el = n_elements or links.N_ELEMENTS_DEFAULT
     rows = []
     for basis in ("PP", "PF"):
-        fa, fr = analytic_link_hz(params, basis), reference_link_hz(params, basis)
+        fa, fr = analytic_frequencies(params.link, basis), reference_link_hz(params, basis)
         fx = links.link_frequencies(params, basis, n_el)
         for j in range(2):
             rows.append({"basis": basis, "mode": j + 1, "analytic_hz": float(fa[j]), "reference_hz": float(fr[j]),

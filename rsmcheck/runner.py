@@ -33,20 +33,16 @@ from rsmcheck.cases import Case
 from rsmcheck.controllers import ProgrammeController, make_controller
 from rsmcheck.engine import Engine, Inputs, Sensors
 from rsmcheck.errors import SimulationDiverged
+from rsmcheck.geometry import rot
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun, Event, Phase
 
 Progress = Callable[[str, float, float], None]
 
 
-def _rot(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
-
-
 def capture_point(s: Sensors, rho_T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Inertial position and velocity of the target point ρ_T (target frame, about the COM)."""
-    lever = _rot(s.target_pose_I[2]) @ rho_T
+    lever = rot(s.target_pose_I[2]) @ rho_T
     v = s.target_rate_I[:2] + s.target_rate_I[2] * np.array([-lever[1], lever[0]])
     return s.target_pose_I[:2] + lever, v
 
@@ -62,7 +58,7 @@ def if_conditions(s: Sensors, arm: int, rho_T: np.ndarray, distance: float, spee
 def capture_gap_B(s: Sensors, arm: int, rho_T: np.ndarray) -> np.ndarray:
     """End effector `arm` minus the target point ρ_T, base axes (the observable of Fig. 10)."""
     p, _ = capture_point(s, rho_T)
-    return _rot(s.base_pose_I[2]).T @ (s.ee_pos_I[arm - 1] - p)
+    return rot(s.base_pose_I[2]).T @ (s.ee_pos_I[arm - 1] - p)
 
 
 def terminal_progress(engine: str, case: str) -> Progress | None:

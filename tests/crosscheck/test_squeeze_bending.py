@@ -30,7 +30,8 @@ import numpy as np
 import pytest
 
 from rsmcheck.cases import load_case
-from rsmcheck.initial import build_initial, rigid_arm
+from rsmcheck.geometry import rigid_arm
+from rsmcheck.initial import build_initial
 from rsmcheck.params import Params
 
 CASE = """

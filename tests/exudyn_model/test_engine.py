@@ -28,7 +28,8 @@ from exudyn_model.engine import ExudynEngine
 from rsmcheck.cases import load_case
 from rsmcheck.compare import compare_runs
 from rsmcheck.engine import Inputs
-from rsmcheck.initial import build_initial, rigid_arm
+from rsmcheck.geometry import rigid_arm
+from rsmcheck.initial import build_initial
 from rsmcheck.observables import NAMES
 from rsmcheck.runner import run
 

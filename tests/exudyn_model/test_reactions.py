@@ -24,6 +24,7 @@ from exudyn_model.engine import ExudynEngine, exu
 from exudyn_model.reactions import ConstraintForces
 from rsmcheck.cases import load_case
 from rsmcheck.engine import Inputs
+from rsmcheck.geometry import rot
 from rsmcheck.runner import run
 from exudyn.itemInterface import (  # noqa: E402 — after the engine's import of exudyn
     CoordinateSpringDamper, LoadForceVector, LoadTorqueVector, MarkerBodyPosition, MarkerBodyRigid,
@@ -31,11 +32,6 @@ from exudyn.itemInterface import (  # noqa: E402 — after the engine's import o
     ObjectRigidBody2D)
 
 FORCE = exu.OutputVariableType.Force
-
-
-def _rot(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s], [s, c]])
 
 
 def _kz(r):  # e_z × r
@@ -111,8 +107,8 @@ def test_two_body_chain_is_newton_euler():
     F1, F2, tau1 = np.array([0.3, -29.4]), np.array([-1.1, -14.7]), 2.5
     k, d = 7.0, 0.6  # spring-damper on θ_2 (ground side 0)
     P0 = np.array([-1.0, 4.0])
-    r1, s1 = _rot(th1) @ [a1, 0.0], _rot(th1) @ [b1, 0.0]
-    r2 = _rot(th2) @ [a2, 0.0]
+    r1, s1 = rot(th1) @ [a1, 0.0], rot(th1) @ [b1, 0.0]
+    r2 = rot(th2) @ [a2, 0.0]
     c1, v1 = P0 + r1, om1 * _kz(r1)
     vd1 = v1 + om1 * _kz(s1)
     c2, v2 = P0 + r1 + s1 + r2, vd1 + om2 * _kz(r2)

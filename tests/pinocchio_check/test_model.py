@@ -28,8 +28,8 @@ from pinocchio_check.model import (
     frame_pose_velocity_y,
     mass_matrix_y,
     point_kinematics_y,
-    rot2,
 )
+from rsmcheck.geometry import rot
 from rsmcheck.params import Params
 
 PARAMS = Params()
@@ -66,7 +66,7 @@ def hand_bodies(p: Params, q, qd, X_T=None, XT_d=None):
     out = [("base", p.base.mass, p.base.inertia_z, r_B, v_B, w_B)]
     ee = {}
     for arm, cols in ((1, slice(3, 6)), (2, slice(6, 9))):
-        m_B = rot2(th_B) @ np.array(p.geometry.mount_B(arm))
+        m_B = rot(th_B) @ np.array(p.geometry.mount_B(arm))
         r_j, v_j = r_B + m_B, v_B + w_B * perp(m_B)
         phi, w = th_B, w_B
         for i, (th, thd) in enumerate(zip(q[cols], qd[cols]), start=1):
@@ -164,7 +164,7 @@ def test_grasp_points_match_hand_formula(rsm, seed):
     rng = np.random.default_rng(seed)
     X_T = rng.uniform(-4, 4, 3)
     for arm in (1, 2):
-        expected = X_T[:2] + rot2(X_T[2]) @ np.array(PARAMS.geometry.grasp_T(arm))
+        expected = X_T[:2] + rot(X_T[2]) @ np.array(PARAMS.geometry.grasp_T(arm))
         assert np.allclose(rsm.grasp_point(X_T, arm), expected, rtol=0, atol=1e-14)
 
 

@@ -17,7 +17,8 @@ import pytest
 
 from rsmcheck.cases import load_case
 from rsmcheck.errors import InputError
-from rsmcheck.initial import build_initial, rigid_arm
+from rsmcheck.geometry import rigid_arm, rot
+from rsmcheck.initial import build_initial
 
 CLOSED = """\
 name = "{name}"
@@ -37,10 +38,6 @@ def case_from(tmp_path: Path, text: str, stem: str = "c"):
     path = tmp_path / f"{stem}.toml"
     path.write_text(textwrap.dedent(text).replace("{name}", stem))
     return load_case(path)
-
-
-def rot(a: float) -> np.ndarray:
-    return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
 
 
 def grasp_point(init, arm: int):
