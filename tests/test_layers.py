@@ -1,0 +1,304 @@
+"""The layers hold: the import graph of the project's own modules, read with `ast` from the
+source tree (nothing is imported), has no cycle among module-level imports and no import
+that goes up a layer; the engines stay independent of each other.
+
+Layers, lowest first (README, Layout):
+
+* floor — what every part reads: errors, parameters, the observable schema, run files,
+  the engine protocol, orbit, trajectories, the case model and loader, plane geometry,
+  analytic beam frequencies;
+* driver — shared by every engine: initial conditions, controllers, the runner;
+* engines — reference_model, exudyn_model, pinocchio_check (independent of each other:
+  only pinocchio_check's comparison module may read the reference model, which it checks);
+* orchestration — the engine factory, chaining, comparison, collection, the gate, studies,
+  the benchmark, eigenfrequencies, closed-loop analysis, fault injection;
+* report — rsmcheck.report (the folder report/), rendering what orchestration stored;
+* entry — the command line, which dispatches to all of the above (`rsmcheck report`
+  included).
+
+An import inside a function (deferred: it runs when the function is called) still counts
+for the layers; a cycle through a deferred import is listed (`python -m pytest -s`) but is
+not a failure.  Every module of the tree must be given a layer, so that a new module is
+placed on purpose.
+"""
+
+from __future__ import annotations
+
+import ast
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: package name → folder (rsmcheck.report is installed from report/, pyproject's package-dir)
+PACKAGES = {
+    "rsmcheck": "rsmcheck",
+    "rsmcheck.report": "report",
+    "reference_model": "reference_model",
+    "exudyn_model": "exudyn_model",
+    "pinocchio_check": "pinocchio_check",
+}
+
+#: (layer, module patterns), lowest first; "pkg.*" is a package and every module of it
+LAYERS: list[tuple[str, tuple[str, ...]]] = [
+    ("floor", ("rsmcheck", "rsmcheck.errors", "rsmcheck.params", "rsmcheck.observables", "rsmcheck.store",
+               "rsmcheck.engine", "rsmcheck.orbit", "rsmcheck.trajectories", "rsmcheck.cases",
+               "rsmcheck.geometry", "rsmcheck.beams")),
+    ("driver", ("rsmcheck.initial", "rsmcheck.controllers", "rsmcheck.runner")),
+    ("engines", ("reference_model.*", "exudyn_model.*", "pinocchio_check.*")),
+    ("orchestration", ("rsmcheck.engines", "rsmcheck.chain", "rsmcheck.compare", "rsmcheck.collect",
+                       "rsmcheck.gate", "rsmcheck.studies", "rsmcheck.bench", "rsmcheck.modes",
+                       "rsmcheck.closed_loop", "rsmcheck.faults")),
+    ("report", ("rsmcheck.report.*",)),
+    ("entry", ("rsmcheck.cli",)),
+]
+
+#: the engines: each is independent of the others ...
+ENGINES = ("reference_model", "exudyn_model", "pinocchio_check")
+#: ... except these (importing module, imported engine)
+ENGINE_EDGES_ALLOWED = {("pinocchio_check.compare", "reference_model")}
+#: third-party engine libraries and the engine packages that own them; the floor and the
+#: driver (shared by every engine) import none of them, an engine only its own
+ENGINE_LIBRARIES = {"exudyn": "exudyn_model", "pinocchio": "pinocchio_check"}
+#: generic top-level names the project must not import (installed as rsmcheck.cases and
+#: rsmcheck.report; cases/ holds only data)
+GENERIC_NAMES = ("cases", "report")
+
+
+@dataclass(frozen=True)
+class Import:
+    source: str  # importing module
+    target: str  # imported module (a project module) or top-level name (anything else)
+    line: int
+    deferred: bool  # inside a function: runs when the function is called
+
+
+# ---------------------------------------------------------------------------------------
+# reading the tree
+# ---------------------------------------------------------------------------------------
+def project_modules(root: Path = ROOT) -> dict[str, Path]:
+    """Module name → file, for every .py file of PACKAGES."""
+    out = {}
+    for pkg, folder in PACKAGES.items():
+        for path in sorted((root / folder).glob("*.py")):
+            out[pkg if path.stem == "__init__" else f"{pkg}.{path.stem}"] = path
+    return out
+
+
+def _resolve(name: str, modules: set[str]) -> str:
+    """The project module `name` names, or the longest project module it lies in (a name
+    imported from a module), or its top-level name when it is not the project's."""
+    parts = name.split(".")
+    for n in range(len(parts), 0, -1):
+        candidate = ".".join(parts[:n])
+        if candidate in modules:
+            return candidate
+    return parts[0]
+
+
+def imports_of(module: str, source: str, modules: set[str]) -> list[Import]:
+    """Every import statement of `source` (the text of `module`)."""
+    tree = ast.parse(source)
+    package = module if module in PACKAGES else module.rpartition(".")[0]
+    found: list[Import] = []
+
+    def visit(node: ast.AST, deferred: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            inner = deferred or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+            if isinstance(child, ast.Import):
+                for alias in child.names:
+                    found.append(Import(module, _resolve(alias.name, modules), child.lineno, deferred))
+            elif isinstance(child, ast.ImportFrom):
+                base = child.module or ""
+                if child.level:  # relative: from the importing module's package
+                    up = package.split(".")
+                    up = up[:len(up) - (child.level - 1)]
+                    base = ".".join(up + ([base] if base else []))
+                for alias in child.names:
+                    target = _resolve(f"{base}.{alias.name}", modules)
+                    if target not in modules:
+                        target = _resolve(base, modules)
+                    found.append(Import(module, target, child.lineno, deferred))
+            visit(child, inner)
+
+    visit(tree, False)
+    return found
+
+
+def import_graph(root: Path = ROOT) -> tuple[set[str], list[Import]]:
+    """(project modules, every import of theirs)."""
+    files = project_modules(root)
+    modules = set(files)
+    edges = [imp for name, path in files.items()
+             for imp in imports_of(name, path.read_text(encoding="utf-8"), modules)]
+    return modules, edges
+
+
+# ---------------------------------------------------------------------------------------
+# the rules
+# ---------------------------------------------------------------------------------------
+def layer_of(module: str, layers=LAYERS) -> int | None:
+    """Index of the layer `module` belongs to (None: no layer names it)."""
+    for i, (_, patterns) in enumerate(layers):
+        for p in patterns:
+            if module == p or (p.endswith(".*") and (module == p[:-2] or module.startswith(p[:-1]))):
+                return i
+    return None
+
+
+def cycles(modules: set[str], edges: list[Import]) -> list[list[str]]:
+    """The strongly connected components with more than one module, or a module importing
+    itself, of the graph of `edges` between `modules` (Tarjan), each sorted."""
+    succ: dict[str, set[str]] = {m: set() for m in modules}
+    for e in edges:
+        if e.source in modules and e.target in modules:
+            succ[e.source].add(e.target)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+
+    def connect(v: str) -> None:  # recursion depth ≤ number of modules (≈ 50)
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(succ[v]):
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1 or v in succ[v]:
+                out.append(sorted(component))
+
+    for v in sorted(modules):
+        if v not in index:
+            connect(v)
+    return sorted(out)
+
+
+def upward_imports(edges: list[Import], layers=LAYERS) -> list[str]:
+    """Imports from a module into a higher layer than its own."""
+    bad = []
+    for e in edges:
+        i, j = layer_of(e.source, layers), layer_of(e.target, layers)
+        if i is not None and j is not None and j > i:
+            bad.append(f"{e.source}:{e.line} ({layers[i][0]}) imports {e.target} ({layers[j][0]})"
+                       + (" inside a function" if e.deferred else ""))
+    return bad
+
+
+def engine_crossings(edges: list[Import]) -> list[str]:
+    """Imports of one engine package (or of another engine's library) by another engine,
+    and of an engine library by the shared floor or driver."""
+    shared = {name for name, _ in LAYERS[:2]}
+    bad = []
+    for e in edges:
+        src_pkg, tgt_pkg = e.source.split(".")[0], e.target.split(".")[0]
+        if src_pkg in ENGINES and tgt_pkg in ENGINES and src_pkg != tgt_pkg \
+                and (e.source, tgt_pkg) not in ENGINE_EDGES_ALLOWED:
+            bad.append(f"{e.source}:{e.line} imports the engine {e.target}")
+        owner = ENGINE_LIBRARIES.get(tgt_pkg)
+        if owner is not None:
+            layer = layer_of(e.source)
+            if (src_pkg in ENGINES and src_pkg != owner) or (layer is not None and LAYERS[layer][0] in shared):
+                bad.append(f"{e.source}:{e.line} imports {tgt_pkg}, {owner}'s library")
+    return bad
+
+
+# ---------------------------------------------------------------------------------------
+# the tests
+# ---------------------------------------------------------------------------------------
+def test_every_module_has_a_layer():
+    modules, _ = import_graph()
+    assert len(modules) > 40, f"only {len(modules)} modules found: not run from the repository?"
+    missing = sorted(m for m in modules if layer_of(m) is None)
+    assert not missing, f"modules with no layer (add them to LAYERS in {Path(__file__).name}): {missing}"
+
+
+def test_no_import_cycle_among_module_level_imports():
+    modules, edges = import_graph()
+    found = cycles(modules, [e for e in edges if not e.deferred])
+    assert not found, "import cycles (module-level imports): " + "; ".join(" ↔ ".join(c) for c in found)
+
+
+def test_cycles_through_deferred_imports_are_listed():
+    """Not a failure: a function-level import that closes a cycle runs only when called.
+    Shown with `python -m pytest -s`."""
+    modules, edges = import_graph()
+    module_level = cycles(modules, [e for e in edges if not e.deferred])
+    deferred = [c for c in cycles(modules, edges) if c not in module_level]
+    for c in deferred:
+        closing = [f"{e.source}:{e.line} → {e.target}" for e in edges
+                   if e.deferred and e.source in c and e.target in c]
+        print(f"cycle through deferred imports: {' ↔ '.join(c)} (closed by {', '.join(closing)})")
+
+
+def test_no_import_goes_up_a_layer():
+    _, edges = import_graph()
+    bad = upward_imports(edges)
+    assert not bad, "imports into a higher layer:\n" + "\n".join(bad)
+
+
+def test_the_engines_are_independent():
+    _, edges = import_graph()
+    bad = engine_crossings(edges)
+    assert not bad, "\n".join(bad)
+    # the allowed crossing is real (else the exception is stale: remove it)
+    for source, engine in ENGINE_EDGES_ALLOWED:
+        assert any(e.source == source and e.target.split(".")[0] == engine for e in edges), (source, engine)
+
+
+def test_no_generic_top_level_names():
+    """Neither the source nor the tests import `cases` or `report` as top-level packages,
+    and cases/ holds no Python."""
+    files = list(project_modules().values()) + sorted((ROOT / "tests").rglob("*.py"))
+    bad = []
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            bad += [f"{path.relative_to(ROOT)}:{node.lineno}: {n}" for n in names if n.split(".")[0] in GENERIC_NAMES]
+    assert not bad, "imports of generic top-level names:\n" + "\n".join(bad)
+    assert not list((ROOT / "cases").glob("*.py"))
+
+
+# ---------------------------------------------------------------------------------------
+# the checks can fail: a synthetic tree with a cycle, an upward import and an engine crossing
+# ---------------------------------------------------------------------------------------
+def test_the_checks_catch_a_cycle_an_upward_import_and_an_engine_crossing():
+    sources = {
+        "rsmcheck.params": "from rsmcheck.runner import run\n",  # floor → driver: upward
+        "rsmcheck.runner": "import numpy\nfrom rsmcheck import params\n",  # closes a cycle
+        "rsmcheck.compare": "def f():\n    from rsmcheck.gate import g\n",  # deferred ...
+        "rsmcheck.gate": "from rsmcheck.compare import f\n",  # ... cycle: listed, not failed
+        "exudyn_model.engine": "from reference_model.model import M\n",  # engine → engine
+        "reference_model.model": "import exudyn\n",  # another engine's library
+        "pinocchio_check.compare": "from reference_model.model import M\n",  # allowed
+    }
+    modules = set(sources)
+    edges = [imp for m, text in sources.items() for imp in imports_of(m, text, modules)]
+    assert Import("rsmcheck.runner", "numpy", 1, False) in edges
+    assert Import("rsmcheck.runner", "rsmcheck.params", 2, False) in edges  # `from pkg import module`
+    assert Import("rsmcheck.compare", "rsmcheck.gate", 2, True) in edges
+
+    assert cycles(modules, [e for e in edges if not e.deferred]) == [["rsmcheck.params", "rsmcheck.runner"]]
+    assert cycles(modules, edges) == [["rsmcheck.compare", "rsmcheck.gate"], ["rsmcheck.params", "rsmcheck.runner"]]
+    assert cycles({"a"}, [Import("a", "a", 1, False)]) == [["a"]]
+
+    up = upward_imports(edges)
+    assert len(up) == 1 and up[0].startswith("rsmcheck.params:1 (floor) imports rsmcheck.runner (driver)")
+
+    crossings = engine_crossings(edges)
+    assert len(crossings) == 2
+    assert crossings[0].startswith("exudyn_model.engine:1 imports the engine reference_model.model")
+    assert crossings[1].startswith("reference_model.model:1 imports exudyn")
