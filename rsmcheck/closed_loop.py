@@ -58,7 +58,7 @@ def controller_gains(case, joint_angles) -> tuple[np.ndarray, np.ndarray, float]
     dt = case.solver.control_period
     ky, kr = np.zeros((N_INPUTS, 20)), np.zeros((N_INPUTS, 6))
     for k, gains in enumerate((spec.arm1, spec.arm2)):
-        jac = ArmModel(params, k).jacobian(np.asarray(joint_angles[3 * k:3 * k + 3]))
+        jac = ArmModel(params, k + 1).jacobian(np.asarray(joint_angles[3 * k:3 * k + 3]))
         ky[3 * k:3 * k + 3, I_EE + 3 * k:I_EE + 3 * k + 3] = jac.T @ np.diag(gains.kp)
         kr[3 * k:3 * k + 3, 3 * k:3 * k + 3] = np.diag(gains.kd)
     ky[6, I_BASE], ky[6, I_BASE + 1] = spec.base.kp, spec.base.kd
@@ -104,7 +104,7 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
     from rsmcheck.modes import reference_linear_plant
 
     case = at_rest(case)
-    arms = (ArmModel(case.params, 0), ArmModel(case.params, 1))
+    arms = (ArmModel(case.params, 1), ArmModel(case.params, 2))  # arms are numbered 1 and 2
     outputs = _outputs(arms)
     q_joint = np.radians(case.initial.joint_angles_deg)
     ky, kr, alpha = controller_gains(case, q_joint)
