@@ -34,10 +34,10 @@ study: venv
 # Fault injection (docs/gate.md): ~17 plausible bugs, each in a copy of the tree; which
 # checks catch which.  Not in CI (≈ 40 min on 2 cores); writes docs/data/faults.json.
 faults: venv
-	$(VPY) -m rsmcheck.faults
+	$(VPY) -m rsmcheck.orchestration.faults
 
 # The short variants of every case and the short mission, both engines side by side
-# (rsmcheck.collect stores the runs in out/; a second `make report` re-renders in seconds
+# (rsmcheck.orchestration.collect stores the runs in out/; a second `make report` re-renders in seconds
 # and re-runs only what the code or the case files changed).
 report: venv
 	$(VENV)/bin/rsmcheck report --short --out out/report.html

@@ -746,7 +746,7 @@ class ExudynEngine:
             out.append(np.array([f[:, 0].sum(), f[:, 1].sum(), np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
         return np.concatenate(out)
 
-    # ---- exact state for phase chaining (rsmcheck.chain) -------------------------------
+    # ---- exact state for phase chaining (rsmcheck.orchestration.chain) -------------------------------
     def export_state(self) -> dict:
         """Everything needed to continue this run in a new engine of the same model: absolute
         ODE2 coordinates and velocities (with the link deformation), the bistop data
@@ -762,7 +762,7 @@ class ExudynEngine:
         """Continue from `export_state()` of an engine of the same model (same links, element
         count, grasps and bases: the model is built from the rigid part of the same end
         state).  A shift of O between the phases (placing O on the orbit at the system COM,
-        rsmcheck.chain) moves every position coordinate by the base's shift.  An exact state
+        rsmcheck.orchestration.chain) moves every position coordinate by the base's shift.  An exact state
         of another model size is not used: the run starts from the rigid end state."""
         q_new, v_new = self._qv()
         same = (exact.get("engine") == self.name and bool(exact.get("rigid")) == self.rigid

@@ -138,7 +138,7 @@ class ReferenceEngine:
         self._work[0] = 0.0
         return switching.release(self.model, self.x, self.cfg, arm)
 
-    # ---- exact state for phase chaining (rsmcheck.chain) ----------------------------
+    # ---- exact state for phase chaining (rsmcheck.orchestration.chain) ----------------------------
     def export_state(self) -> dict:
         """Everything needed to continue this run in a new reference engine of the same model
         size: the ODE state (with the modal amplitudes), link bases, grasp flags, held points."""

@@ -1,6 +1,6 @@
 """`rsmcheck report`'s renderer: one self-contained HTML page from stored results.
 
-It reads what `rsmcheck.collect` stored in a folder (runs, verdict, Pinocchio and
+It reads what `rsmcheck.orchestration.collect` stored in a folder (runs, verdict, Pinocchio and
 eigenfrequency rows) and the project's stored studies (docs/data: refinement and
 convergence studies, speed, fault injection) and runs nothing.  The page, top to bottom:
 
@@ -32,7 +32,7 @@ from typing import Any, Sequence
 import jinja2
 
 from rsmcheck.cases import Case, list_cases, load_case
-from rsmcheck.collect import MODES, VERDICT, phase_runs
+from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.errors import InputError
 from rsmcheck.observables import BY_NAME
 from rsmcheck.report import paper
@@ -150,7 +150,7 @@ class Stored:
 
 
 def load_stored(folder: Path, case_names: Sequence[str] | None = None) -> Stored:
-    """Read the verdict, runs and tables that `rsmcheck.collect` stored in `folder`."""
+    """Read the verdict, runs and tables that `rsmcheck.orchestration.collect` stored in `folder`."""
     path = folder / VERDICT
     if not path.is_file():
         raise InputError(str(path), "verdict", "no stored results: run `rsmcheck report` (it collects first)")
@@ -255,7 +255,7 @@ def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict]
 
 def case_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict], gates: dict) -> list[dict]:
     """One section per stand-alone case: its checks, events, golden verdicts and plots."""
-    from rsmcheck.gate import golden_path, read_golden
+    from rsmcheck.orchestration.gate import golden_path, read_golden
 
     out = []
     for case in st.cases:

@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from rsmcheck.collect import phase_runs
+from rsmcheck.orchestration.collect import phase_runs
 from rsmcheck.observables import BY_NAME
 from rsmcheck.report.drawing import snapshot_figure
 from rsmcheck.report.plots import comparison_figure, run_marks

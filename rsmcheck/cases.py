@@ -32,7 +32,7 @@ CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
 ARM_MODES = ("hold", "freeze", "move", "approach", "carry", "off", "torque")
 TARGET_MODES = ("move", "push", "com_align")
 BASE_MODES = ("hold", "freeze", "angle", "retrograde", "off")
-#: metrics a [compare] entry may ask for; rsmcheck.compare.difference computes each
+#: metrics a [compare] entry may ask for; rsmcheck.orchestration.compare.difference computes each
 METRICS = ("max_abs", "rms", "final", "growth")
 #: top-level keys a [short] table may replace
 SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare", "exudyn")
@@ -202,9 +202,9 @@ class Case:
     exudyn: Mapping[str, Any] = field(default_factory=dict)
     #: reference engine step settings of the case ([reference]: h_max), defaults elsewhere
     reference: Mapping[str, Any] = field(default_factory=dict)
-    #: the common rigid part of the end state this run starts from (set by rsmcheck.chain)
+    #: the common rigid part of the end state this run starts from (set by rsmcheck.orchestration.chain)
     start_state: Mapping[str, Any] | None = field(default=None, repr=False)
-    #: engine-specific exact states of that end state, by engine name (rsmcheck.chain)
+    #: engine-specific exact states of that end state, by engine name (rsmcheck.orchestration.chain)
     start_exact: Mapping[str, Any] | None = field(default=None, repr=False)
 
     def run_duration(self, short: bool) -> float:

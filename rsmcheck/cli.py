@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
-from rsmcheck.engines import ENGINES
+from rsmcheck.orchestration.engines import ENGINES
 from rsmcheck.errors import InputError, exit_code, flush_stdout
 
 
@@ -42,7 +42,7 @@ def _engine_names(choice: str) -> list[str]:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from rsmcheck.cases import load_case
-    from rsmcheck.chain import run_case
+    from rsmcheck.orchestration.chain import run_case
     from rsmcheck.runner import terminal_progress
     from rsmcheck.store import output_dir
 
@@ -58,7 +58,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from rsmcheck.collect import collect
+    from rsmcheck.orchestration.collect import collect
     from rsmcheck.store import output_file
 
     out = output_file(args.out, "--out")  # before anything runs
@@ -114,7 +114,7 @@ def _fmt(x: float) -> str:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from rsmcheck.cases import load_case
-    from rsmcheck.compare import check_case
+    from rsmcheck.orchestration.compare import check_case
     from rsmcheck.store import dumps_json, output_dir, write_run
 
     out = output_dir(args.out, "--out") if args.out else None
@@ -162,7 +162,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
-    from rsmcheck.modes import arm_rows, link_rows
+    from rsmcheck.orchestration.modes import arm_rows, link_rows
     from rsmcheck.store import dumps_json
 
     links = link_rows(n_elements=args.elements)
@@ -191,14 +191,14 @@ def _cmd_pinocchio(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from rsmcheck.bench import main
+    from rsmcheck.orchestration.bench import main
 
     return main(args.rest)
 
 
 def _gate_cases(names: Sequence[str] | None) -> list:
     from rsmcheck.cases import load_case
-    from rsmcheck.gate import gated_cases
+    from rsmcheck.orchestration.gate import gated_cases
 
     if not names or list(names) == ["all"]:
         return gated_cases()
@@ -216,7 +216,7 @@ def _progress(text: str) -> None:
 
 
 def _cmd_gate(args: argparse.Namespace) -> int:
-    from rsmcheck.gate import gate, tolerance_table
+    from rsmcheck.orchestration.gate import gate, tolerance_table
     from rsmcheck.store import dumps_json
 
     cases = _gate_cases(args.case)
@@ -252,7 +252,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 
 def _cmd_bless(args: argparse.Namespace) -> int:
-    from rsmcheck.gate import CHANGELOG, bless
+    from rsmcheck.orchestration.gate import CHANGELOG, bless
     from rsmcheck.store import output_dir
 
     if not args.reason or not args.reason.strip():
@@ -315,7 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rerun", action="store_true", help="run everything again, even what is stored and current")
     p.add_argument("--render-only", action="store_true",
                    help="only render what is stored (seconds); run nothing")
-    from rsmcheck.gate import GOLDEN_DIR
+    from rsmcheck.orchestration.gate import GOLDEN_DIR
 
     p = sub.add_parser("gate", help="run the cases' short variants and compare each engine with its golden")
     p.add_argument("case", nargs="*", help="case names (default: every stand-alone case)")

@@ -87,7 +87,7 @@ class Engine(Protocol):
 
     def export_state(self) -> dict:
         """The engine's own full state (with the link deformation), JSON-able arrays and
-        scalars, enough for a new engine of the same model to continue (rsmcheck.chain)."""
+        scalars, enough for a new engine of the same model to continue (rsmcheck.orchestration.chain)."""
         ...
 
     def import_state(self, exact: dict) -> None:

@@ -9,10 +9,10 @@ sits on (and moves with) grasp point 2: least-norm Newton on the three joint ang
 the case's values as first guess.
 
 A case that starts from the stored end state of another (`Case.start_state`, the common
-rigid part written by `rsmcheck.chain`) takes every pose, rate, motor angle, held point,
+rigid part written by `rsmcheck.orchestration.chain`) takes every pose, rate, motor angle, held point,
 orbit state and the propellant used from it instead (links undeformed: the rigid part
 is what every engine can start from; an engine's own exact state is restored on top by
-`rsmcheck.chain`).
+`rsmcheck.orchestration.chain`).
 
 Orbit (docs/physics.md §5): with `[orbit] enabled`, the co-moving point O is put on a
 circular orbit of the case's altitude.  `centre_on_com` (default) shifts all positions
@@ -95,7 +95,7 @@ def build_initial(case: Case, params: Params | None = None) -> InitialConfigurat
 
 
 def _from_state(case: Case, params: Params, st) -> InitialConfiguration:
-    """The common rigid part of a stored end state (rsmcheck.chain.RIGID_KEYS).
+    """The common rigid part of a stored end state (rsmcheck.orchestration.chain.RIGID_KEYS).
 
     The links start undeformed, placed by the joint angles between their frames θ_J; every
     joint spring keeps its twist θ_m − ψ_J (the rotor angles are shifted by θ_J − ψ_J, the

@@ -90,7 +90,8 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
     if case.phases:
         from rsmcheck.errors import InputError
 
-        raise InputError(case.path, "phases", "a sequence case runs through rsmcheck.chain.run_case")
+        raise InputError(case.path, "phases",
+                         "a sequence case runs through rsmcheck.orchestration.chain.run_case")
     if duration is None:
         duration = case.duration
     elif case.short is not None and not case.is_short and duration != case.duration \

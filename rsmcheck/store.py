@@ -235,7 +235,7 @@ def write_run(
     """Write `runs` (group name -> run, the name being the run's engine) to `path`.
 
     Datasets longer than COMPRESS_ABOVE samples are gzip-compressed, all of them with
-    `compress` (small files kept in the repository, rsmcheck.gate).
+    `compress` (small files kept in the repository, rsmcheck.orchestration.gate).
 
     Everything is validated before anything is written: observables with
     `check_observables`, events and phases (finite times, t_end >= t_start), scalar

@@ -8,7 +8,7 @@ finished every run the collected tests will need is submitted, in collection ord
 test then waits only for its own runs.  A test declares them with
 `pytest.mark.engine_runs((case, engine, short, options), ...)`.
 
-A sequence case (the mission) is a job too: it runs through `rsmcheck.chain.run_case` into
+A sequence case (the mission) is a job too: it runs through `rsmcheck.orchestration.chain.run_case` into
 a folder of the session and comes back as a `SequenceRun` (the run, the file's attributes,
 the folder with its end states).  Jobs start longest first (the wall time each golden
 recorded, goldens/; a sequence: the sum of its phases'), so that no long run starts last
@@ -48,8 +48,8 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
     import time
 
     from rsmcheck.cases import load_case
-    from rsmcheck.chain import run_case
-    from rsmcheck.compare import _run_one
+    from rsmcheck.orchestration.chain import run_case
+    from rsmcheck.orchestration.compare import _run_one
     from rsmcheck.store import read_run
 
     case = load_case(case_name)
@@ -68,10 +68,10 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
 
 
 def expected_wall(case_name: str, engine: str) -> float:
-    """The wall time the case's golden recorded for `engine` (rsmcheck.collect); 0 for a
+    """The wall time the case's golden recorded for `engine` (rsmcheck.orchestration.collect); 0 for a
     case that does not load (the tests themselves report on it).  Only orders the jobs."""
     from rsmcheck.cases import load_case
-    from rsmcheck.collect import expected_wall as recorded
+    from rsmcheck.orchestration.collect import expected_wall as recorded
     from rsmcheck.errors import InputError
 
     try:

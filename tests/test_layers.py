@@ -10,8 +10,9 @@ Layers, lowest first (README, Layout):
 * driver — shared by every engine: initial conditions, controllers, the runner;
 * engines — reference_model, exudyn_model, pinocchio_check (independent of each other:
   only pinocchio_check's comparison module may read the reference model, which it checks);
-* orchestration — the engine factory, chaining, comparison, collection, the gate, studies,
-  the benchmark, eigenfrequencies, closed-loop analysis, fault injection;
+* orchestration — the folder rsmcheck/orchestration/, every module in it: the engine
+  factory, chaining, comparison, collection, the gate, studies, the benchmark,
+  eigenfrequencies, closed-loop analysis, fault injection;
 * report — rsmcheck.report (the folder report/), rendering what orchestration stored;
 * entry — the command line, which dispatches to all of the above (`rsmcheck report`
   included).
@@ -19,7 +20,7 @@ Layers, lowest first (README, Layout):
 An import inside a function (deferred: it runs when the function is called) still counts
 for the layers; a cycle through a deferred import is listed (`python -m pytest -s`) but is
 not a failure.  Every module of the tree must be given a layer, so that a new module is
-placed on purpose.
+placed on purpose (a module put in rsmcheck/orchestration/ is placed by its folder).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: package name → folder (rsmcheck.report is installed from report/, pyproject's package-dir)
 PACKAGES = {
     "rsmcheck": "rsmcheck",
+    "rsmcheck.orchestration": "rsmcheck/orchestration",
     "rsmcheck.report": "report",
     "reference_model": "reference_model",
     "exudyn_model": "exudyn_model",
@@ -46,9 +48,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
                "rsmcheck.geometry", "rsmcheck.beams")),
     ("driver", ("rsmcheck.initial", "rsmcheck.controllers", "rsmcheck.runner")),
     ("engines", ("reference_model.*", "exudyn_model.*", "pinocchio_check.*")),
-    ("orchestration", ("rsmcheck.engines", "rsmcheck.chain", "rsmcheck.compare", "rsmcheck.collect",
-                       "rsmcheck.gate", "rsmcheck.studies", "rsmcheck.bench", "rsmcheck.modes",
-                       "rsmcheck.closed_loop", "rsmcheck.faults")),
+    ("orchestration", ("rsmcheck.orchestration.*",)),  # the folder is the layer
     ("report", ("rsmcheck.report.*",)),
     ("entry", ("rsmcheck.cli",)),
 ]
@@ -225,6 +225,19 @@ def test_every_module_has_a_layer():
     assert not missing, f"modules with no layer (add them to LAYERS in {Path(__file__).name}): {missing}"
 
 
+def test_the_orchestration_folder_is_the_orchestration_layer():
+    """Every module under rsmcheck/orchestration/ is in the orchestration layer, and every
+    module of rsmcheck in that layer lies in the folder: the folder shows the layer."""
+    files = project_modules()
+    folder = ROOT / PACKAGES["rsmcheck.orchestration"]
+    in_folder = {m for m, path in files.items() if path.parent == folder}
+    assert "rsmcheck.orchestration.compare" in in_folder, f"{folder} not found or empty"
+    orchestration = next(i for i, (name, _) in enumerate(LAYERS) if name == "orchestration")
+    in_layer = {m for m in files if m.split(".")[0] == "rsmcheck" and layer_of(m) == orchestration}
+    assert in_layer == in_folder, (f"in the folder, not the layer: {sorted(in_folder - in_layer)}; "
+                                   f"in the layer, not the folder: {sorted(in_layer - in_folder)}")
+
+
 def test_no_import_cycle_among_module_level_imports():
     modules, edges = import_graph()
     found = cycles(modules, [e for e in edges if not e.deferred])
@@ -279,8 +292,8 @@ def test_the_checks_catch_a_cycle_an_upward_import_and_an_engine_crossing():
     sources = {
         "rsmcheck.params": "from rsmcheck.runner import run\n",  # floor → driver: upward
         "rsmcheck.runner": "import numpy\nfrom rsmcheck import params\n",  # closes a cycle
-        "rsmcheck.compare": "def f():\n    from rsmcheck.gate import g\n",  # deferred ...
-        "rsmcheck.gate": "from rsmcheck.compare import f\n",  # ... cycle: listed, not failed
+        "rsmcheck.orchestration.compare": "def f():\n    from rsmcheck.orchestration.gate import g\n",  # deferred
+        "rsmcheck.orchestration.gate": "from rsmcheck.orchestration.compare import f\n",  # cycle: listed only
         "exudyn_model.engine": "from reference_model.model import M\n",  # engine → engine
         "reference_model.model": "import exudyn\n",  # another engine's library
         "pinocchio_check.compare": "from reference_model.model import M\n",  # allowed
@@ -289,10 +302,11 @@ def test_the_checks_catch_a_cycle_an_upward_import_and_an_engine_crossing():
     edges = [imp for m, text in sources.items() for imp in imports_of(m, text, modules)]
     assert Import("rsmcheck.runner", "numpy", 1, False) in edges
     assert Import("rsmcheck.runner", "rsmcheck.params", 2, False) in edges  # `from pkg import module`
-    assert Import("rsmcheck.compare", "rsmcheck.gate", 2, True) in edges
+    assert Import("rsmcheck.orchestration.compare", "rsmcheck.orchestration.gate", 2, True) in edges
 
     assert cycles(modules, [e for e in edges if not e.deferred]) == [["rsmcheck.params", "rsmcheck.runner"]]
-    assert cycles(modules, edges) == [["rsmcheck.compare", "rsmcheck.gate"], ["rsmcheck.params", "rsmcheck.runner"]]
+    assert cycles(modules, edges) == [["rsmcheck.orchestration.compare", "rsmcheck.orchestration.gate"],
+                                      ["rsmcheck.params", "rsmcheck.runner"]]
     assert cycles({"a"}, [Import("a", "a", 1, False)]) == [["a"]]
 
     up = upward_imports(edges)

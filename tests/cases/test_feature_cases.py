@@ -84,7 +84,7 @@ def test_motor_step_rings_at_the_rotor_frequency(short_run):
     from the zero crossings against Exudyn's 75.65 Hz), and decays at the rate the links'
     share of its strain energy gives."""
     from exudyn_model.modes import coupled_frequencies
-    from rsmcheck.modes import modal_case
+    from rsmcheck.orchestration.modes import modal_case
 
     case, r = short_run("motor_step")
     o = r.observables

@@ -1,4 +1,4 @@
-"""Phase chaining (rsmcheck.chain): a case starts from the stored end state of another,
+"""Phase chaining (rsmcheck.orchestration.chain): a case starts from the stored end state of another,
 the end-state file, entering the orbit, and a sequence case with continuous time."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from rsmcheck.cases import load_case
-from rsmcheck.chain import chained, end_state_path, load_end_state, run_case
-from rsmcheck.engines import make_engine
+from rsmcheck.orchestration.chain import chained, end_state_path, load_end_state, run_case
+from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.errors import InputError
 from rsmcheck.initial import build_initial
 from rsmcheck.store import read_run
@@ -192,7 +192,7 @@ def test_short_runs_start_p2_from_its_own_initial(tmp_path):
     """The short mission starts at p2 (p1's short variant does not bring the target into arm
     2's reach): with --short, p2 ignores a stored p1 end state; p3 still chains from p2, and
     full-length runs chain as usual."""
-    from rsmcheck.chain import starts_short_sequence, use_stored_start
+    from rsmcheck.orchestration.chain import starts_short_sequence, use_stored_start
 
     assert starts_short_sequence("p2_capture_regrasp")
     assert not starts_short_sequence("p3_com_alignment")

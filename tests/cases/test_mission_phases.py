@@ -109,7 +109,7 @@ def test_fig6a_rigid_model_gains_make_end_effector_2_diverge(short_run):
     σ ≈ 70/s from the transport's own torques (0.0024 N·m at 0.1 s, 3 N·m at 0.2 s; the
     linearised loop: +70 and +76/s near 140 Hz), where the filtered set carries the same
     transport with torques that stay below 0.1 N·m."""
-    from rsmcheck.compare import growth_rate
+    from rsmcheck.orchestration.compare import growth_rate
 
     case, r = short_run("p1_rigid_gains")
     o = r.observables

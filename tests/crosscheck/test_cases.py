@@ -13,7 +13,7 @@ from __future__ import annotations
 import pytest
 
 from rsmcheck.cases import list_cases, load_case
-from rsmcheck.compare import check_runs
+from rsmcheck.orchestration.compare import check_runs
 
 #: (case, observable) -> why it cannot pass at the case's tolerance, with the measured size
 #: (Exudyn at the case's [exudyn] step, EA = 1e5·EI; docs/exudyn.md §5, §8)

@@ -1,6 +1,6 @@
 """Flexible agreement converges: the reference with more modes per link and Exudyn with
 more ANCF elements per link approach each other (docs/exudyn.md §7; the full study, modes
-1…4 × elements 2…16, is `python -m rsmcheck.studies convergence`, stored in
+1…4 × elements 2…16, is `python -m rsmcheck.orchestration.studies convergence`, stored in
 docs/data/convergence_*.json).
 
 flex_arm_step (short, 1 s), Exudyn at h = 62.5 µs (16 steps per control period) so that the
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import pytest
 
-from rsmcheck.compare import relative_errors
+from rsmcheck.orchestration.compare import relative_errors
 
 CASE = "flex_arm_step"
 SUBSTEPS = 16

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from rsmcheck.gate import compare_with_golden, gated_cases, golden_path, read_golden
+from rsmcheck.orchestration.gate import compare_with_golden, gated_cases, golden_path, read_golden
 
 ENGINES = ("reference", "exudyn")
 CASES = [c.name for c in gated_cases()]

@@ -1,4 +1,4 @@
-"""Phase chaining with the Exudyn engine: `export_state` / `import_state` (rsmcheck.chain).
+"""Phase chaining with the Exudyn engine: `export_state` / `import_state` (rsmcheck.orchestration.chain).
 
 A phase started from a stored end state must continue the same motion: the new engine is
 built from the rigid part of the end state and then takes Exudyn's own exact state (link
@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rsmcheck import chain
+from rsmcheck.orchestration import chain
 from rsmcheck.cases import load_case
 from rsmcheck.engine import Inputs
-from rsmcheck.engines import make_engine
+from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.runner import run
 
 RELATIVE = ("target_pose_B", "ee1_pos_B", "ee2_pos_B", "capture_gap_B", "com_pos_B", "joint_angles",

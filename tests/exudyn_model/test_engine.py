@@ -2,7 +2,7 @@
 
 Unit tests check the model against its own definitions (initial state = rsmcheck.initial,
 frames of docs/physics.md §2.1).  `crosscheck` tests run both engines through the shared
-sampled-data loop and compare every observable with `rsmcheck.compare` (scale = max of the
+sampled-data loop and compare every observable with `rsmcheck.orchestration.compare` (scale = max of the
 reference, with the physical floors of `SCALE_FLOORS`).  The tolerances are the measured
 differences with a margin, each explained in docs/exudyn.md:
 
@@ -26,7 +26,7 @@ import pytest
 
 from exudyn_model.engine import ExudynEngine
 from rsmcheck.cases import load_case
-from rsmcheck.compare import compare_runs
+from rsmcheck.orchestration.compare import compare_runs
 from rsmcheck.engine import Inputs
 from rsmcheck.geometry import rigid_arm
 from rsmcheck.initial import build_initial

@@ -24,7 +24,7 @@ pytestmark = pytest.mark.crosscheck
 def reference_frequencies(case, n_modes: int, n: int) -> np.ndarray:
     """Frequencies of the reference linearised by central differences of its ODE (the
     oscillatory eigenvalues; Baumgarte's real eigenvalues −α, −β drop out)."""
-    from rsmcheck.modes import reference_coupled_hz
+    from rsmcheck.orchestration.modes import reference_coupled_hz
 
     return reference_coupled_hz(case, n=n, n_modes=n_modes)
 

@@ -3,7 +3,7 @@
 Two stand-alone cases run by both engines (free_drift, p1_rigid_gains: their short runs are
 already in the pool for the cross-check) and the short mission run by the reference (the
 pool's mission run for tests/cases/test_mission_phases.py) are stored the way
-`rsmcheck.collect` stores them; the verdict is computed from them as `collect` does, with
+`rsmcheck.orchestration.collect` stores them; the verdict is computed from them as `collect` does, with
 the Pinocchio rows of two random states per chain; then the page is rendered.
 """
 
@@ -33,7 +33,7 @@ class Rendered:
 def rendered(run_pool, tmp_path_factory) -> Rendered:
     from pinocchio_check.compare import run_checks
     from rsmcheck.cases import load_case
-    from rsmcheck.collect import Collected, source_digest, store_runs, verdict
+    from rsmcheck.orchestration.collect import Collected, source_digest, store_runs, verdict
     from rsmcheck.report.build import render
     from rsmcheck.store import write_json
 

@@ -6,7 +6,7 @@ import html
 import json
 import re
 
-from rsmcheck.compare import check_runs
+from rsmcheck.orchestration.compare import check_runs
 from rsmcheck.report.build import departures_table, fmt, render, verdict_rows
 
 SECTIONS = ("verdict", "provenance", "departures", "mission", "paper", "cases", "pinocchio", "modes", "studies",

@@ -262,7 +262,7 @@ def test_run_out_file_in_a_real_process(tmp_path):
 
 
 def test_bench_out_that_is_a_directory_exits_2_before_running(tmp_path, capsys, monkeypatch):
-    import rsmcheck.bench as bench
+    import rsmcheck.orchestration.bench as bench
 
     def no_run(*a, **k):
         raise AssertionError("a run started before --out was checked")
@@ -308,7 +308,7 @@ def test_write_json_is_strict(tmp_path):
 
 
 def _fake_bench(monkeypatch):
-    import rsmcheck.bench as bench
+    import rsmcheck.orchestration.bench as bench
 
     monkeypatch.setattr(bench, "bench_run", lambda case, engine, variant: {
         "case": case, "engine": engine, "variant": variant, "wall_s": NAN, "sim_s": NAN, "peak_mb": NAN,
@@ -317,7 +317,7 @@ def _fake_bench(monkeypatch):
 
 
 def _fake_check(monkeypatch):
-    import rsmcheck.compare as compare
+    import rsmcheck.orchestration.compare as compare
 
     def check_case(case, short, options, parallel=True):
         rows = [compare.Check(case.name, "momentum_I", 0.0, 1e-6), compare.Check(case.name, "energy", NAN, 1e-6)]
@@ -327,7 +327,7 @@ def _fake_check(monkeypatch):
 
 
 def _fake_gate(monkeypatch):
-    import rsmcheck.gate as gate
+    import rsmcheck.orchestration.gate as gate
 
     def fake(cases, engines, root=None, progress=None):
         return [gate.GateResult(c.name, e, moved=[gate.Moved("energy", 1.0, 0.0, 0.1, 0)], largest_ratio=INF)
@@ -340,7 +340,7 @@ def _fake_gate(monkeypatch):
 
 
 def _fake_modes(monkeypatch):
-    import rsmcheck.modes as modes
+    import rsmcheck.orchestration.modes as modes
 
     monkeypatch.setattr(modes, "link_rows", lambda n_elements=None: [
         {"basis": "PP", "mode": 1, "analytic_hz": 30.16, "reference_hz": 30.16, "exudyn_hz": NAN}])

@@ -1,4 +1,4 @@
-"""rsmcheck.closed_loop: the zero-order-hold closure of the shared controller's laws,
+"""rsmcheck.orchestration.closed_loop: the zero-order-hold closure of the shared controller's laws,
 checked on plants whose sampled loops are known in closed form."""
 
 from __future__ import annotations
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from rsmcheck.cases import load_case
-from rsmcheck.closed_loop import I_BASE, N_INPUTS, closed_loop_exponents, controller_gains, rotor_modes
+from rsmcheck.orchestration.closed_loop import (I_BASE, N_INPUTS, closed_loop_exponents, controller_gains,
+                                                rotor_modes)
 
 
 def _scalar_plant(a: float):

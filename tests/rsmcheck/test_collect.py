@@ -1,4 +1,4 @@
-"""rsmcheck.collect: what the report's runs are cut into and checked by."""
+"""rsmcheck.orchestration.collect: what the report's runs are cut into and checked by."""
 
 from __future__ import annotations
 
@@ -8,15 +8,16 @@ import numpy as np
 import pytest
 
 from rsmcheck.cases import load_case
-from rsmcheck.collect import _current, mission_checks, phase_runs, phase_specs, source_digest, store_runs
-from rsmcheck.compare import check_runs
+from rsmcheck.orchestration.collect import (_current, mission_checks, phase_runs, phase_specs, source_digest,
+                                            store_runs)
+from rsmcheck.orchestration.compare import check_runs
 from rsmcheck.observables import allocate
 from rsmcheck.store import EngineRun, Event, Phase
 
 
 def _flight(engine: str, mission, offsets: dict[str, float] | None = None) -> EngineRun:
     """A synthetic short mission: each phase sampled at its output period from its own
-    t = 0 and concatenated as rsmcheck.chain does (the boundary time appears twice)."""
+    t = 0 and concatenated as rsmcheck.orchestration.chain does (the boundary time appears twice)."""
     parts, events, phases = [], [], []
     start = 0.0
     for name in mission.variant(True).phases:
@@ -120,7 +121,7 @@ def test_a_stored_run_is_current_only_for_the_same_case_variant_and_code(tmp_pat
 
 @pytest.mark.engine_runs(("mission", "reference", True, ()), ("p2_capture_regrasp", "reference", True, ()))
 def test_the_flights_first_phase_is_the_stand_alone_run(run_pool):
-    """rsmcheck.collect takes the first phase's run from the flight instead of running it
+    """rsmcheck.orchestration.collect takes the first phase's run from the flight instead of running it
     again: it must be the same run, sample for sample."""
     mission = load_case("mission")
     first, _, cut = phase_runs(mission, True, run_pool.get("mission", "reference").run)[0]

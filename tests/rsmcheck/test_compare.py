@@ -1,4 +1,4 @@
-"""rsmcheck.compare: the metrics of the [compare] tables, margins, the relative
+"""rsmcheck.orchestration.compare: the metrics of the [compare] tables, margins, the relative
 differences with their floors, and the `check` command's exit codes and JSON (README, command line)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 
 from rsmcheck.cases import CompareSpec, list_cases, load_case
 from rsmcheck.cli import main
-from rsmcheck.compare import (METRICS, SCALE_FLOORS, Check, check_runs, compare_runs, difference,
+from rsmcheck.orchestration.compare import (METRICS, SCALE_FLOORS, Check, check_runs, compare_runs, difference,
                               growth_rate, relative_errors)
 from rsmcheck.observables import NAMES, allocate
 from rsmcheck.store import EngineRun, Event
@@ -236,7 +236,7 @@ def test_check_bad_input_exits_2(argv, field, capsys):
 def test_check_runs_both_engines():
     """A real (serial) check of the shortest case, flex_arm_step cut to its first 0.1 s:
     one row per [compare] entry with the keys README's command line lists (pass/fail: tests/crosscheck)."""
-    import rsmcheck.compare as cmp
+    import rsmcheck.orchestration.compare as cmp
 
     case = load_case("flex_arm_step").variant(True)
     res = cmp.check_case(dataclasses.replace(case, duration=0.1, short=None), short=False, parallel=False)

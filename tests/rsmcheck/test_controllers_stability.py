@@ -21,7 +21,7 @@ from scipy.linalg import expm
 from reference_model import core
 from reference_model.engine import ReferenceEngine
 from rsmcheck.cases import Segment, load_case
-from rsmcheck.closed_loop import at_rest
+from rsmcheck.orchestration.closed_loop import at_rest
 from rsmcheck.controllers import ProgrammeController
 
 #: the hold configuration of p1: arm 1 at (4.0, 0.6) m, φ = 0 holding the target, arm 2 at

@@ -1,4 +1,4 @@
-"""The fault list of `make faults` (rsmcheck.faults) stays applicable as the code changes:
+"""The fault list of `make faults` (rsmcheck.orchestration.faults) stays applicable as the code changes:
 every fault's text occurs exactly once where it says, the faults cover the reference, the
 Exudyn model and the shared inputs, and one control fault changes no arithmetic."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rsmcheck.faults import FAULTS, ROOT, apply, revert
+from rsmcheck.orchestration.faults import FAULTS, ROOT, apply, revert
 
 
 def test_every_fault_applies_exactly_once():

@@ -15,7 +15,7 @@ import pytest
 from reference_model.engine import ReferenceEngine
 from rsmcheck.cases import load_case
 from rsmcheck.cli import main
-from rsmcheck.gate import (
+from rsmcheck.orchestration.gate import (
     PERTURBATION,
     compare_with_golden,
     event_identity,

@@ -1,4 +1,4 @@
-"""rsmcheck.studies: the refinement study's grid, its records and its command line."""
+"""rsmcheck.orchestration.studies: the refinement study's grid, its records and its command line."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from rsmcheck.studies import _exudyn_grid, main, refinement_study
+from rsmcheck.orchestration.studies import _exudyn_grid, main, refinement_study
 
 
 def test_exudyn_grid_reads_substeps_and_axial_stiffness():

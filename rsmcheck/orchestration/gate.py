@@ -36,7 +36,7 @@ from rsmcheck.errors import InputError
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun, git_commit, read_run, write_run, write_text
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 GOLDEN_DIR = ROOT / "goldens"
 CHANGELOG = "CHANGELOG.md"
 GOLDEN_SCHEMA = 1
@@ -359,7 +359,7 @@ def gated_cases() -> list:
 
 
 def _job(engine: str, case, perturbed: bool) -> EngineRun:
-    from rsmcheck.compare import _run_child
+    from rsmcheck.orchestration.compare import _run_child
 
     variant = perturbed_case(case) if perturbed else case
     return _run_child(engine, variant, variant.duration, {})

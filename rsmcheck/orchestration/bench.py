@@ -36,8 +36,8 @@ VARIANTS = ("short", "full")
 _CHILD = r"""
 import json, resource, sys, tempfile, time
 from rsmcheck.cases import load_case
-from rsmcheck.chain import run_case
-from rsmcheck.engines import make_engine
+from rsmcheck.orchestration.chain import run_case
+from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.runner import run
 name, engine_name, short = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
 case = load_case(name)

@@ -42,7 +42,7 @@ import numpy as np
 
 from rsmcheck.cases import Case, load_case
 from rsmcheck.engine import Inputs
-from rsmcheck.engines import make_engine
+from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.errors import InputError
 from rsmcheck.geometry import rot
 from rsmcheck.observables import NAMES

@@ -4,7 +4,7 @@ case says.
 Every command and study builds its engines here (`rsmcheck run`, `check`, `gate`, `bench`,
 the studies, the phase chain), so that an engine starts the same way everywhere: from the
 case's [initial] conditions, or — a case chained onto another's end state
-(rsmcheck.chain) — from that end state, the engine's own exact state when it can take it
+(rsmcheck.orchestration.chain) — from that end state, the engine's own exact state when it can take it
 (`import_state`, same model size), else the rigid part every engine understands.
 """
 

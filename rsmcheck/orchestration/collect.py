@@ -4,7 +4,7 @@
 
 ===================  ===========================================================================
 ``runs/CASE.h5``     every stand-alone case, both engines (rsmcheck.store format)
-``runs/mission.h5``  the mission, its phases chained (rsmcheck.chain.run_mission), both engines
+``runs/mission.h5``  the mission, its phases chained (rsmcheck.orchestration.chain.run_mission), both engines
 ``pinocchio.json``   the rows of ``rsmcheck pinocchio --json`` (rigid modes 0 and 2)
 ``modes.json``       the rows of ``rsmcheck modes --json`` (link and coupled frequencies)
 ``verdict.json``     every check: the cross-check rows of each case (the same rows, computed by
@@ -40,8 +40,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from rsmcheck.cases import Case, list_cases, load_case, sibling_case
-from rsmcheck.compare import check_runs
-from rsmcheck.engines import ENGINES
+from rsmcheck.orchestration.compare import check_runs
+from rsmcheck.orchestration.engines import ENGINES
 from rsmcheck.errors import InputError
 from rsmcheck.store import EngineRun, Event, Phase, git_commit, package_versions, read_run, write_json, write_run
 
@@ -49,8 +49,9 @@ from rsmcheck.store import EngineRun, Event, Phase, git_commit, package_versions
 SOURCE_PACKAGES = ("rsmcheck", "reference_model", "exudyn_model", "pinocchio_check")
 #: modules of rsmcheck that orchestrate, compare or report: no run depends on them (the
 #: verdict is recomputed from the runs every time)
-NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/collect.py", "rsmcheck/bench.py", "rsmcheck/studies.py",
-               "rsmcheck/faults.py", "rsmcheck/gate.py", "rsmcheck/compare.py")
+NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/orchestration/collect.py", "rsmcheck/orchestration/bench.py",
+               "rsmcheck/orchestration/studies.py", "rsmcheck/orchestration/faults.py",
+               "rsmcheck/orchestration/gate.py", "rsmcheck/orchestration/compare.py")
 VERDICT = "verdict.json"
 PINOCCHIO = "pinocchio.json"
 MODES = "modes.json"
@@ -62,7 +63,7 @@ Progress = Callable[[str], None]
 def source_digest(root: Path | None = None) -> str:
     """sha256 over the names and contents of the .py files of SOURCE_PACKAGES that runs
     depend on (all but NOT_IN_RUNS): a run made by other code is not reused."""
-    root = root or Path(__file__).resolve().parent.parent
+    root = root or Path(__file__).resolve().parents[2]
     h = hashlib.sha256()
     for pkg in SOURCE_PACKAGES:
         for path in sorted((root / pkg).rglob("*.py")):
@@ -110,12 +111,12 @@ def _do_job(job: Job, workdir: str) -> tuple[Any, float]:
             rows = [r for n in (0, 2) for r in run_checks(n_modes=n, open_arms=(1, 2))]
             return {"checks": rows}, time.monotonic() - t0
         if job.kind == "modes":
-            from rsmcheck.modes import modes_report
+            from rsmcheck.orchestration.modes import modes_report
 
             return modes_report(), time.monotonic() - t0
         case = load_case(job.case)
         if case.phases:
-            from rsmcheck.chain import run_mission
+            from rsmcheck.orchestration.chain import run_mission
 
             out = Path(workdir) / f"{job.case}.{job.engine}"
             phases: dict[str, dict[str, EngineRun]] = {}
@@ -123,7 +124,7 @@ def _do_job(job: Job, workdir: str) -> tuple[Any, float]:
                                            phase_runs=phases))
             return MissionResult(runs[job.engine], {p: r[job.engine] for p, r in phases.items()}), \
                 time.monotonic() - t0
-        from rsmcheck.compare import _run_one
+        from rsmcheck.orchestration.compare import _run_one
 
         variant = case.variant(job.short)
         return _run_one(job.engine, variant, variant.duration, {}), time.monotonic() - t0
@@ -134,7 +135,7 @@ def _do_job(job: Job, workdir: str) -> tuple[Any, float]:
 def expected_wall(case: Case, engine: str) -> float:
     """The wall time the case's golden recorded for `engine` [s] (0 without one; a sequence:
     the sum over its phases).  Only orders the jobs, longest first."""
-    from rsmcheck.gate import golden_path
+    from rsmcheck.orchestration.gate import golden_path
 
     if case.phases:
         return sum(expected_wall(load_case(sibling_case(p, Path(case.path))), engine)
@@ -270,7 +271,7 @@ def phase_runs(mission: Case, short: bool, run: EngineRun) -> list[tuple[Case, f
     """The mission run cut into its phases: (the phase case's variant, its start time in the
     mission, the phase's run on phase-local time), in order.
 
-    `rsmcheck.chain.run_mission` concatenates the phases' runs, each from its own t = 0: the
+    `rsmcheck.orchestration.chain.run_mission` concatenates the phases' runs, each from its own t = 0: the
     last sample of one phase and the first of the next have the same mission time, and each
     belongs to its own phase."""
     variant = mission.variant(short)
@@ -318,7 +319,7 @@ def phase_specs(mission: Case, short: bool, phase: Case) -> tuple:
 
 def mission_checks(mission: Case, short: bool, runs: dict[str, EngineRun]) -> list[dict[str, Any]]:
     """Each phase of the chained mission checked by its own tolerances plus the difference
-    the engines carry into it (`rsmcheck.compare.check_runs(chained=True)`); rows named
+    the engines carry into it (`rsmcheck.orchestration.compare.check_runs(chained=True)`); rows named
     "mission/PHASE"."""
     if not {"reference", "exudyn"} <= set(runs):
         return []
@@ -334,8 +335,8 @@ def mission_checks(mission: Case, short: bool, runs: dict[str, EngineRun]) -> li
 
 
 def gate_rows(case: Case, runs: dict[str, EngineRun]) -> list[dict[str, Any]]:
-    """Each engine's short run of `case` against its golden (rsmcheck.gate)."""
-    from rsmcheck.gate import compare_with_golden, golden_path, read_golden
+    """Each engine's short run of `case` against its golden (rsmcheck.orchestration.gate)."""
+    from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 
     rows = []
     for engine, run in runs.items():

@@ -17,9 +17,10 @@
   attitude instead of tracking the retrograde direction), the largest difference of each
   observable (docs/cases.md §4).
 
-Run: `python -m rsmcheck.studies rigid [CASE…]`, `python -m rsmcheck.studies convergence`,
-`python -m rsmcheck.studies refinement CASE --modes 2,4 --exudyn 32:1e5,256:1e6`,
-`python -m rsmcheck.studies orbit [CASE…]`.
+Run: `python -m rsmcheck.orchestration.studies rigid [CASE…]`,
+`python -m rsmcheck.orchestration.studies convergence`,
+`python -m rsmcheck.orchestration.studies refinement CASE --modes 2,4 --exudyn 32:1e5,256:1e6`,
+`python -m rsmcheck.orchestration.studies orbit [CASE…]`.
 The Exudyn numbers come from Exudyn alone (`exudyn_model` never imports the reference);
 this module only compares the two.
 """
@@ -35,12 +36,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from rsmcheck.compare import SCALE_FLOORS, compare_runs
-from rsmcheck.engines import make_engine
+from rsmcheck.orchestration.compare import SCALE_FLOORS, compare_runs
+from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.errors import exit_code
 from rsmcheck.observables import NAMES
 
-DATA_DIR = Path(__file__).resolve().parent.parent / "docs" / "data"
+DATA_DIR = Path(__file__).resolve().parents[2] / "docs" / "data"
 FEATURE_CASES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", "capture", "release",
                  "wrist_bistop", "gravity_gradient", "thrust_burn")
 OBSERVABLES = tuple(n for n in NAMES if n != "time")
@@ -216,7 +217,7 @@ def refinement_study(case_name: str, modes: Sequence[int], exudyn: Sequence[tupl
     from dataclasses import replace
 
     from rsmcheck.cases import load_case
-    from rsmcheck.compare import check_runs
+    from rsmcheck.orchestration.compare import check_runs
 
     case = load_case(case_name).variant(short)
     doc: dict[str, Any] = {"study": "refinement: the case's [compare] rows, reference modes x Exudyn (substeps, EA/EI)",
@@ -322,7 +323,7 @@ def _int_list(text: str) -> list[int]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m rsmcheck.studies")
+    p = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.studies")
     sub = p.add_subparsers(dest="study", required=True)
     r = sub.add_parser("rigid")
     r.add_argument("cases", nargs="*", default=list(FEATURE_CASES))
@@ -373,7 +374,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                               substeps=a.substeps, duration=a.duration, out=out, log=log)
         return 0
 
-    return exit_code("rsmcheck.studies", dispatch)
+    return exit_code("rsmcheck.orchestration.studies", dispatch)
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 both engines (docs/exudyn.md §10, p1_rigid_gains).
 
 Each engine supplies its own continuous plant at rest in the case's initial configuration
-(orbit off): ẋ = A x + B u, y = C x (`rsmcheck.modes.reference_linear_plant`,
+(orbit off): ẋ = A x + B u, y = C x (`rsmcheck.orchestration.modes.reference_linear_plant`,
 `exudyn_model.modes.linear_plant`).  The rest is the shared controller's laws
 (rsmcheck.controllers, physics.md §6), linearised about a hold of that configuration:
 
@@ -16,7 +16,7 @@ held over [t_k, t_k+Δt) (zero-order hold), so that with Φ = e^{AΔt}, Γ = ∫
 closed-loop multipliers μ of [x_k, r_{k−1}] give s = ln μ / Δt: σ = Re s [1/s], f = Im s/2π.
 The saturation is left out (a linear analysis).
 
-    python -m rsmcheck.closed_loop [CASE] [--modes N] [--elements N]
+    python -m rsmcheck.orchestration.closed_loop [CASE] [--modes N] [--elements N]
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
     """Closed-loop rotor-mode exponents of `case` (at rest, initial configuration) in both
     engines: {"reference": s, "exudyn": s}."""
     from exudyn_model.modes import linear_plant
-    from rsmcheck.modes import reference_linear_plant
+    from rsmcheck.orchestration.modes import reference_linear_plant
 
     case = at_rest(case)
     arms = (ArmModel(case.params, 1), ArmModel(case.params, 2))  # arms are numbered 1 and 2
@@ -119,7 +119,8 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
 def main(argv=None) -> int:
     from rsmcheck.cases import load_case
 
-    p = argparse.ArgumentParser(prog="python -m rsmcheck.closed_loop", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.closed_loop",
+                                description=__doc__.split("\n")[0])
     p.add_argument("case", nargs="?", default="p1_rigid_gains")
     p.add_argument("--modes", type=int, default=None, help="reference modes per link (default: the case's)")
     p.add_argument("--elements", type=int, default=8, help="Exudyn ANCF elements per link")

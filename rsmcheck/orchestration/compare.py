@@ -46,7 +46,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from rsmcheck.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
-from rsmcheck.engines import make_engine
+from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
 from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null

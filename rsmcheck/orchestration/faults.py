@@ -1,6 +1,6 @@
 """Fault injection: which checks of the suite catch which plausible modelling bugs.
 
-`make faults` (not in CI; ≈ 40 min on 2 cores) = ``python -m rsmcheck.faults``.  Each
+`make faults` (not in CI; ≈ 40 min on 2 cores) = ``python -m rsmcheck.orchestration.faults``.  Each
 fault of `FAULTS` is one textual change (an exact string that must occur once) applied to
 a temporary copy of the tree; in that copy the short variants of `CASES` are run by the
 engines the fault can affect, and three kinds of check look at them:
@@ -31,7 +31,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "data" / "faults.json"
 #: the cases every fault is tried on: fast short variants that together exercise every
 #: mechanism (open/closed chain, capture-free release, bistop, orbit, thrust, growth)
@@ -153,7 +153,7 @@ def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
     t0 = time.monotonic()
     try:
         env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(tree / ".numba_cache")}
-        proc = subprocess.run([sys.executable, "-m", "rsmcheck.faults", "probe", fault.name],
+        proc = subprocess.run([sys.executable, "-m", "rsmcheck.orchestration.faults", "probe", fault.name],
                               cwd=tree, env=env, capture_output=True, text=True)
     finally:
         revert(fault, ROOT, tree)
@@ -168,7 +168,8 @@ def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m rsmcheck.faults", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.faults",
+                                 description=__doc__.split("\n\n")[0])
     ap.add_argument("command", nargs="?", default="all", help="all (default) or probe")
     ap.add_argument("names", nargs="*", help="only these faults (default: all)")
     ap.add_argument("--out", default=str(OUT))
@@ -197,7 +198,8 @@ def _by_name(name: str) -> Fault:
     for f in FAULTS:
         if f.name == name:
             return f
-    raise SystemExit(f"rsmcheck.faults: unknown fault {name!r} (known: {', '.join(f.name for f in FAULTS)})")
+    raise SystemExit(f"rsmcheck.orchestration.faults: unknown fault {name!r} "
+                     f"(known: {', '.join(f.name for f in FAULTS)})")
 
 
 # ---------------------------------------------------------------------------------------
@@ -206,8 +208,8 @@ def _by_name(name: str) -> Fault:
 def probe(fault: Fault) -> dict:
     """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
     from rsmcheck.cases import load_case
-    from rsmcheck.compare import check_runs
-    from rsmcheck.gate import at_samples, compare_with_golden, golden_path, read_golden, run_jobs
+    from rsmcheck.orchestration.compare import check_runs
+    from rsmcheck.orchestration.gate import at_samples, compare_with_golden, golden_path, read_golden, run_jobs
 
     engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
     if "reference" in engines:  # compile the core once, in this process, before the workers
