@@ -9,7 +9,6 @@ the Pinocchio rows of two random states per chain; then the page is rendered.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 

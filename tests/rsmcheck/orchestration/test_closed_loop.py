@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 
 from rsmcheck.cases import load_case
 from rsmcheck.orchestration.closed_loop import (I_BASE, N_INPUTS, closed_loop_exponents, controller_gains,
