@@ -12,21 +12,16 @@ grasp is on) are dropped.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from exudyn_model import links
 from exudyn_model.links import link_frequencies  # noqa: F401  (re-exported)
+from rsmcheck.cases import at_rest, undamped
 
 
 def at_rest_undamped(case, params=None):
     """The case in its initial configuration with zero rates and no damping."""
-    params = params or case.params
-    params = dataclasses.replace(params, link=dataclasses.replace(params.link, damping_ratio=0.0),
-                                 motor=dataclasses.replace(params.motor, damping=0.0))
-    ini = dataclasses.replace(case.initial, base_rate=(0.0, 0.0, 0.0), joint_rates=(0.0,) * 6)
-    return dataclasses.replace(case, initial=ini, params=params)
+    return undamped(at_rest(case), params)
 
 
 def coupled_frequencies(case, n: int = 6, n_elements: int = links.N_ELEMENTS_DEFAULT,

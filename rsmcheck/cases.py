@@ -894,3 +894,26 @@ def _modes(where: str, key: str, v: Any) -> tuple[int, ...]:
     if len(items) != 6 or any(isinstance(x, bool) or not isinstance(x, int) or not 0 <= x <= 6 for x in items):
         raise InputError(where, key, "must be an integer 0..6 or a list of six")
     return tuple(items)
+
+
+# ---------------------------------------------------------------------------------------
+# a case's configuration, held still: what the linearisations of both engines start from
+# ---------------------------------------------------------------------------------------
+def at_rest(case: Case) -> Case:
+    """`case` in its initial configuration with zero base and joint rates."""
+    ini = replace(case.initial, base_rate=(0.0, 0.0, 0.0), joint_rates=(0.0,) * 6)
+    return replace(case, initial=ini)
+
+
+def undamped(case: Case, params: Params | None = None) -> Case:
+    """`case` (with `params` instead of its own, if given) without link damping (ζ = 0) and
+    motor damping (C_m = 0): the undamped frequencies both engines are compared on."""
+    params = params or case.params
+    params = replace(params, link=replace(params.link, damping_ratio=0.0),
+                     motor=replace(params.motor, damping=0.0))
+    return replace(case, params=params)
+
+
+def without_orbit(case: Case) -> Case:
+    """`case` with the orbit (field, co-moving frame) switched off."""
+    return replace(case, orbit=False, orbit_spec=OrbitSpec())

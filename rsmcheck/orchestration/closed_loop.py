@@ -22,11 +22,11 @@ The saturation is left out (a linear analysis).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 
 import numpy as np
 
+from rsmcheck.cases import at_rest, without_orbit
 from rsmcheck.controllers import ArmModel, measure
 
 N_INPUTS = 7  # τ_m1..6, τ_B
@@ -42,14 +42,6 @@ def _outputs(arms):
         return np.concatenate([s.joint_angles, s.joint_rates, m.ee_B[0], m.ee_B[1],
                                [s.base_pose_I[2], s.base_rate_I[2]]])
     return outputs
-
-
-def at_rest(case):
-    """`case` at rest in its initial configuration, orbit off (damping kept)."""
-    from rsmcheck.cases import OrbitSpec
-
-    ini = dataclasses.replace(case.initial, base_rate=(0.0, 0.0, 0.0), joint_rates=(0.0,) * 6)
-    return dataclasses.replace(case, initial=ini, orbit=False, orbit_spec=OrbitSpec())
 
 
 def controller_gains(case, joint_angles) -> tuple[np.ndarray, np.ndarray, float]:
@@ -103,7 +95,7 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
     from exudyn_model.modes import linear_plant
     from rsmcheck.orchestration.modes import reference_linear_plant
 
-    case = at_rest(case)
+    case = without_orbit(at_rest(case))
     arms = (ArmModel(case.params, 1), ArmModel(case.params, 2))  # arms are numbered 1 and 2
     outputs = _outputs(arms)
     q_joint = np.radians(case.initial.joint_angles_deg)

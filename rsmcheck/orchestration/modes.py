@@ -20,11 +20,12 @@ drop out), against Exudyn's eigenvalues of its own M, K on the constraint null s
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any, Sequence
 
 import numpy as np
+
+from rsmcheck.cases import at_rest, undamped, without_orbit
 
 #: (name, case, what it is) of the configurations `rsmcheck modes` linearises
 CONFIGURATIONS = (
@@ -68,13 +69,7 @@ def link_rows(params=None, n_elements: int | None = None) -> list[dict[str, Any]
 
 def modal_case(case):
     """`case` at rest in its initial configuration, undamped, without orbit."""
-    from exudyn_model.modes import at_rest_undamped
-    from rsmcheck.cases import OrbitSpec
-
-    case = at_rest_undamped(case)
-    if case.orbit:
-        case = dataclasses.replace(case, orbit=False, orbit_spec=OrbitSpec())
-    return case
+    return without_orbit(undamped(at_rest(case)))
 
 
 def reference_coupled_hz(case, n: int = N_ARM_MODES, n_modes=None) -> np.ndarray:

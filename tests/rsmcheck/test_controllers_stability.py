@@ -21,7 +21,7 @@ from scipy.linalg import expm
 from reference_model import core
 from reference_model.engine import ReferenceEngine
 from rsmcheck.cases import Segment, load_case
-from rsmcheck.orchestration.closed_loop import at_rest
+from rsmcheck.cases import at_rest, without_orbit
 from rsmcheck.controllers import ProgrammeController
 
 #: the hold configuration of p1: arm 1 at (4.0, 0.6) m, φ = 0 holding the target, arm 2 at
@@ -33,7 +33,7 @@ def closed_loop_exponents(case_name: str) -> np.ndarray:
     """Continuous-equivalent exponents log(λ)/T of the closed loop's discrete eigenvalues."""
     case = load_case(case_name)
     ini = dataclasses.replace(case.initial, joint_angles_deg=HOLD_JOINTS)
-    case = at_rest(dataclasses.replace(case, initial=ini))  # at rest, orbit off
+    case = without_orbit(at_rest(dataclasses.replace(case, initial=ini)))
     spec = case.controller
     T = case.solver.control_period
     engine = ReferenceEngine(case)
