@@ -160,7 +160,7 @@ def make_states(pin_model: PinocchioRSM, chain: str, n_states: int, first_seed: 
 
 
 def default_reference(params: Params, n_modes: int):
-    from reference_model.model import ReferenceModel
+    from reference_model.build import ReferenceModel
 
     return ReferenceModel(params, n_modes=n_modes)
 

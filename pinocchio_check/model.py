@@ -408,7 +408,7 @@ def generalized_inputs(pm: PinModel, u_J, tau_B: float) -> np.ndarray:
 class PinocchioRSM:
     """Pinocchio's answers, in reference coordinates, to the reference model's questions.
 
-    Method names and signatures mirror ``reference_model.model.ReferenceModel`` so that
+    Method names and signatures mirror ``reference_model.build.ReferenceModel`` so that
     `compare` can put the two side by side.  States (q, qd, X_T, XT_d) follow the
     reference convention (module docstring); a state with an active grasp must satisfy
     the grasp constraint to ``CONSISTENCY_TOL`` (else ValueError).

@@ -1,7 +1,7 @@
 """Compiled core of the Kane–Newton reference model: plain arrays in, plain arrays out.
 
 Read next to the paper (Sect. 2, Appendix) and docs/physics.md.  Everything here is a
-`numba.njit` function on arrays; `reference_model.model` builds the arrays and gives
+`numba.njit` function on arrays; `reference_model.build` builds the arrays and gives
 them names.  The model's constant arrays travel as one named tuple `ModelArrays`, the
 switching state (bases, grasps, held points) as `Switches`.
 

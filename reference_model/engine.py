@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from reference_model import core, switching
-from reference_model.implicit import integrate_trbdf2
-from reference_model.model import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, terminal_basis
+from reference_model.trbdf2 import integrate_trbdf2
+from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, terminal_basis
 from reference_model.observe import observe
 from rsmcheck.cases import Case
 from rsmcheck.engine import Inputs, Sensors

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from reference_model import core
-from reference_model.model import Configuration, ReferenceModel
+from reference_model.build import Configuration, ReferenceModel
 from rsmcheck.geometry import rot
 
 

@@ -14,7 +14,7 @@ import pytest
 from pinocchio_check import compare
 from rsmcheck.params import Params
 
-pytest.importorskip("reference_model.model")
+pytest.importorskip("reference_model.build")
 
 N_STATES = compare.N_STATES
 CASES = [("open", 1), ("open", 2), ("closed", 0)]

@@ -27,7 +27,7 @@ import pytest
 
 from reference_model import core
 from reference_model.beam_modes import PF, PP, modal_basis
-from reference_model.model import Configuration, ReferenceModel, terminal_basis
+from reference_model.build import Configuration, ReferenceModel, terminal_basis
 from reference_model.observe import energy_of_state
 from rsmcheck.params import Params
 

@@ -21,7 +21,7 @@ import pytest
 
 from reference_model import core
 from reference_model.beam_modes import PF
-from reference_model.model import Configuration, ReferenceModel, terminal_basis
+from reference_model.build import Configuration, ReferenceModel, terminal_basis
 from rsmcheck.params import Params
 
 JDOT_REL_TOL = 1e-6

@@ -24,7 +24,7 @@ import pytest
 from reference_model import core, switching
 from reference_model.beam_modes import PF, PP
 from reference_model.engine import ReferenceEngine
-from reference_model.model import ReferenceModel
+from reference_model.build import ReferenceModel
 from reference_model.observe import energy_of_state, momentum_of_state
 
 PIN_TOL = 1e-9  # m and m/s

@@ -136,7 +136,7 @@ def test_generalised_tidal_forces_derive_from_the_energy_observable():
     the energies of the `energy` observable: the dynamics and the reported potential agree
     (same sign, same 8-point quadrature on the deformed links, base and target at COM)."""
     from reference_model import core
-    from reference_model.model import Configuration, ReferenceModel, terminal_basis
+    from reference_model.build import Configuration, ReferenceModel, terminal_basis
     from reference_model.observe import energy_of_state
     from rsmcheck.params import Params
 

@@ -1,4 +1,4 @@
-"""The stiff-capable integrator (reference_model/implicit.py, TR-BDF2).
+"""The stiff-capable integrator (reference_model/trbdf2.py, TR-BDF2).
 
 What must hold: it solves the same ODE as the explicit Dormand–Prince pair (agreement at
 the level of the tolerances), its error control works (the error shrinks with rtol at
