@@ -35,6 +35,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from reference_model.field import tidal
+
 # --- indices into the scalar parameter vector `sc` -----------------------------------
 S_MB0 = 0  # base mass at t = 0 [kg]
 S_JB = 1  # base inertia about COM [kg m²]
@@ -78,38 +80,6 @@ ModelArrays = namedtuple("ModelArrays", [
     "phi_g", "x_g", "w_g", "mount", "order", "first"])
 #: The switching part: basis[i] of each link, grasp_on[k], held points rho_G[k] (target frame).
 Switches = namedtuple("Switches", ["basis", "grasp_on", "rho_G"])
-
-
-@njit(cache=True)
-def _tidal(rO, rel):
-    """Exact tidal acceleration g(r_O + ρ) − g(r_O), g(r) = −μ r/|r|³ (μ applied by caller).
-
-    Written without cancellation (Encke/Battin form): with q = (2 r_O·ρ + ρ·ρ)/|r_O|²,
-    F = 1 − (1 + q)^(−3/2) = −expm1(−1.5 log1p(q)),  Δg/μ = (F (r_O + ρ) − ρ)/|r_O|³.
-    """
-    r2 = rO[0] * rO[0] + rO[1] * rO[1]
-    qv = (2.0 * (rO[0] * rel[0] + rO[1] * rel[1]) + rel[0] * rel[0] + rel[1] * rel[1]) / r2
-    f = -math.expm1(-1.5 * math.log1p(qv))
-    r3 = r2 * math.sqrt(r2)
-    return (f * (rO[0] + rel[0]) - rel[0]) / r3, (f * (rO[1] + rel[1]) - rel[1]) / r3
-
-
-@njit(cache=True)
-def _tidal_potential(rO, rel):
-    """Tidal potential energy per unit mass / μ: −∇_ρ U = `_tidal` (fixed r_O).
-
-    U/μ = −1/|r_O+ρ| + 1/|r_O| − r_O·ρ/|r_O|³ = (h(q) + |ρ|²/(2|r_O|²))/|r_O| with
-    h(q) = 1 − (1+q)^(−1/2) − q/2, evaluated by its series for small q.  To second order
-    U/μ = −ρᵀ(3 r̂r̂ᵀ − I)ρ/(2|r_O|³): negative along the radial (the tidal force stretches).
-    """
-    r2 = rO[0] * rO[0] + rO[1] * rO[1]
-    rho2 = rel[0] * rel[0] + rel[1] * rel[1]
-    qv = (2.0 * (rO[0] * rel[0] + rO[1] * rel[1]) + rho2) / r2
-    if abs(qv) < 1e-3:
-        h = qv * qv * (-3.0 / 8.0 + qv * (5.0 / 16.0 + qv * (-35.0 / 128.0 + qv * 63.0 / 256.0)))
-    else:
-        h = 1.0 - 1.0 / math.sqrt(1.0 + qv) - 0.5 * qv
-    return (h + 0.5 * rho2 / r2) / math.sqrt(r2)
 
 
 @njit(cache=True)
@@ -403,7 +373,7 @@ def _field_link(i, q, th, R, rO, aunif, m, basis, M):
         ux = m.x_g[g]
         rel[0] = R[i, 0] + c * ux - s * wg
         rel[1] = R[i, 1] + s * ux + c * wg
-        gx, gy = _tidal(rO, rel)
+        gx, gy = tidal(rO, rel)
         gx *= sc[S_MU] * rho * m.w_g[g]
         gy *= sc[S_MU] * rho * m.w_g[g]
         Q[0] += gx
@@ -432,7 +402,7 @@ def _base_rows(Mg, f, q, rO, mB, aunif, u, sc):
     f[1] += mB * aunif[1] + thrust * sb
     f[2] += u[U_TAU_B]
     if sc[S_ORBIT] != 0.0:
-        gx, gy = _tidal(rO, q[0:2])
+        gx, gy = tidal(rO, q[0:2])
         f[0] += sc[S_MU] * mB * gx
         f[1] += sc[S_MU] * mB * gy
 
@@ -550,7 +520,7 @@ def _target_rows(Mg, f, XT, rO, aunif, nq, sc):
     f[nq] += sc[S_MT] * aunif[0]
     f[nq + 1] += sc[S_MT] * aunif[1]
     if sc[S_ORBIT] != 0.0:
-        gx, gy = _tidal(rO, XT[0:2])
+        gx, gy = tidal(rO, XT[0:2])
         f[nq] += sc[S_MU] * sc[S_MT] * gx
         f[nq + 1] += sc[S_MU] * sc[S_MT] * gy
 
@@ -780,94 +750,3 @@ def rhs(x, u, m, sw):
     dx[2 * ns + 2:2 * ns + 4] = aO
     dx[2 * ns + 4] = u[U_THRUST] / m.sc[S_ISPG0]
     return dx
-
-
-# --- Dormand–Prince 5(4) with error control ------------------------------------------
-_C = np.array([0.0, 1.0 / 5, 3.0 / 10, 4.0 / 5, 8.0 / 9, 1.0, 1.0])
-_A = np.array([
-    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [1.0 / 5, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [3.0 / 40, 9.0 / 40, 0.0, 0.0, 0.0, 0.0],
-    [44.0 / 45, -56.0 / 15, 32.0 / 9, 0.0, 0.0, 0.0],
-    [19372.0 / 6561, -25360.0 / 2187, 64448.0 / 6561, -212.0 / 729, 0.0, 0.0],
-    [9017.0 / 3168, -355.0 / 33, 46732.0 / 5247, 49.0 / 176, -5103.0 / 18656, 0.0],
-    [35.0 / 384, 0.0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84],
-])
-_B5 = np.array([35.0 / 384, 0.0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0.0])
-_E = np.array([71.0 / 57600, 0.0, -71.0 / 16695, 71.0 / 1920, -17253.0 / 339200, 22.0 / 525,
-               -1.0 / 40])
-
-
-@njit(cache=True)
-def integrate(x0, t0, t1, h, rtol, atol, hmax, u, m, sw):
-    """Integrate from t0 to t1 with inputs u held: embedded Dormand–Prince 5(4), error per
-    component scaled by atol_i + rtol·|x_i| (max norm), step size by the PI controller of
-    Hairer & Wanner's DOPRI5 (β = 0.04, safety 0.9, ratio in [0.2, 10]), which rejects far
-    fewer steps near the stability limit than the plain err^(−1/5) rule.
-
-    Returns (x(t1), next step size, accepted steps, rejected steps, status); status 0 ok,
-    1 non-finite state, 2 step size underflow.
-    """
-    x = x0.copy()
-    t = t0
-    nx = x.shape[0]
-    K = np.zeros((7, nx))
-    K[0] = rhs(x, u, m, sw)
-    nacc = 0
-    nrej = 0
-    h = min(h, hmax)
-    h_nominal = h
-    err_old = 1e-4
-    rejected = False
-    while t < t1:
-        last = False
-        h_nominal = h
-        if t + h >= t1 - 1e-12 * max(1.0, abs(t1)):
-            h = t1 - t
-            last = True
-        for st in range(1, 7):
-            xs = x.copy()
-            for j in range(st):
-                if _A[st, j] != 0.0:
-                    xs += h * _A[st, j] * K[j]
-            K[st] = rhs(xs, u, m, sw)
-        xn = xs  # stage 7 is evaluated at the 5th-order solution (FSAL)
-        err = 0.0
-        for c in range(nx):
-            e = 0.0
-            for st in range(7):
-                e += _E[st] * K[st, c]
-            sc_c = atol[c] + rtol * max(abs(x[c]), abs(xn[c]))
-            err = max(err, abs(h * e) / sc_c)
-        if not np.isfinite(err):
-            if h < 1e-12:
-                return x, h, nacc, nrej, 1
-            h *= 0.2
-            nrej += 1
-            rejected = True
-            continue
-        # PI step-size control: h_new = h · 0.9 err^(−0.17) err_old^(0.04)
-        f11 = err ** 0.17 if err > 0.0 else 0.0
-        if err <= 1.0:
-            fac = f11 / err_old ** 0.04 / 0.9
-            fac = min(5.0, max(0.1, fac))  # h grows at most ×10, shrinks at most ×5
-            err_old = max(err, 1e-4)
-            t = t1 if last else t + h
-            x = xn
-            K[0] = K[6]
-            nacc += 1
-            h_next = h / fac
-            if rejected:
-                h_next = min(h_next, h)  # no growth right after a rejection
-            rejected = False
-            if last:
-                h = min(h_nominal, hmax)  # the clipped last step says nothing about the next
-            else:
-                h = min(h_next, hmax)
-        else:
-            h /= min(5.0, f11 / 0.9)
-            nrej += 1
-            rejected = True
-            if h < 1e-13:
-                return x, h, nacc, nrej, 2
-    return x, h, nacc, nrej, 0

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from reference_model import core, switching
+from reference_model.dopri5 import integrate_dopri5
 from reference_model.trbdf2 import integrate_trbdf2
 from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, terminal_basis
 from reference_model.observe import observe
@@ -94,7 +95,7 @@ class ReferenceEngine:
         args = self.model.core_args(self.cfg)
         u = self.u_vector(inputs)
         if self.integrator == "dopri5":
-            x, h, nacc, nrej, status = core.integrate(
+            x, h, nacc, nrej, status = integrate_dopri5(
                 self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, u, *args)
         else:
             x, h, nacc, nrej, status = integrate_trbdf2(

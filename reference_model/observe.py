@@ -10,6 +10,7 @@ import numpy as np
 
 from reference_model import core
 from reference_model.build import Configuration, ReferenceModel
+from reference_model.field import tidal_potential
 from rsmcheck.geometry import rot
 
 
@@ -96,7 +97,7 @@ def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> fl
     rO = x[lay.r_O]
     mu = prm.orbit.mu
     mB = prm.base.mass - x[lay.m_used]
-    e = mB * core._tidal_potential(rO, q[0:2]) + prm.target.mass * core._tidal_potential(rO, x[lay.target][0:2])
+    e = mB * tidal_potential(rO, q[0:2]) + prm.target.mass * tidal_potential(rO, x[lay.target][0:2])
     th, _, R, *_ = model.kinematics(q, x[lay.qd], cfg)
     for i in range(core.N_LINKS):
         n = lay.n_modes[i]
@@ -105,7 +106,7 @@ def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> fl
         A = rot(th[i])
         for xg, wg, ph in zip(basis.x_gauss, basis.w_gauss, basis.phi_gauss):
             rel = R[i] + A @ np.array([xg, ph[:n] @ a])
-            e += prm.link.rho_a * wg * core._tidal_potential(rO, rel)
+            e += prm.link.rho_a * wg * tidal_potential(rO, rel)
     return mu * e
 
 

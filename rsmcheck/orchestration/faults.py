@@ -64,7 +64,7 @@ FAULTS: tuple[Fault, ...] = (
           "kf += m.k_ff[i, b, a, e] * (q[o + e] + sc[S_ETA] * qd[o + e])",
           "kf += m.k_ff[i, b, a, e] * (q[o + e] + 0.5 * sc[S_ETA] * qd[o + e])",
           "Kelvin–Voigt coefficient η = ζ/ω₁ instead of 2ζ/ω₁ (half the structural damping)"),
-    Fault("ref_tidal_exponent", "reference", "reference_model/core.py",
+    Fault("ref_tidal_exponent", "reference", "reference_model/field.py",
           "f = -math.expm1(-1.5 * math.log1p(qv))", "f = -math.expm1(-1.45 * math.log1p(qv))",
           "gravity-gradient law: (1+q)^(−1.45) instead of (1+q)^(−3/2) (tidal coefficient 2.9 instead of 3)"),
     Fault("ref_mass_flow_g0", "reference", "reference_model/core.py",

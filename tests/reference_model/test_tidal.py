@@ -1,13 +1,13 @@
-"""Tidal acceleration core._tidal and its potential core._tidal_potential (docs/physics.md §5).
+"""Tidal acceleration field.tidal and its potential field.tidal_potential (docs/physics.md §5).
 
-`_tidal(r_O, ρ)` returns (g(r_O + ρ) − g(r_O))/μ with g(r) = −μ r/|r|³, written without
+`tidal(r_O, ρ)` returns (g(r_O + ρ) − g(r_O))/μ with g(r) = −μ r/|r|³, written without
 cancellation.  Checked against
 * a 50-digit `decimal` evaluation of the naive difference (orbit scale, where float64 naive
   differencing loses most digits — the test shows that too, so it can tell them apart);
 * the float64 naive difference at a moderate radius where cancellation is harmless;
 * the linearised gravity gradient (μ/r³)(3 r̂r̂ᵀ − I)ρ = 3μ/r³ (r̂r̂ᵀ − I/3)ρ, which must agree
   to first order in ρ/r (relative error ≤ 5 ρ/r and halving with ρ);
-* −∇_ρ of `_tidal_potential` by central differences (the force derives from the potential
+* −∇_ρ of `tidal_potential` by central differences (the force derives from the potential
   the energy observable uses, so energy can be conserved in orbit).
 """
 
@@ -19,7 +19,7 @@ from decimal import Decimal, getcontext
 import numpy as np
 import pytest
 
-from reference_model.core import _tidal, _tidal_potential
+from reference_model.field import tidal, tidal_potential
 
 R_LEO = 6378137.0 + 700e3
 
@@ -67,14 +67,14 @@ def test_tidal_against_50_digit_decimal_at_orbit_scale():
     worst_naive = 0.0
     for rO, rel in _points(rng, 200, R_LEO, (-2, 4)):  # ρ from 1 cm to 10 km
         ref = tidal_decimal(rO, rel)
-        got = np.array(_tidal(rO, rel))
+        got = np.array(tidal(rO, rel))
         err = np.linalg.norm(got - ref) / np.linalg.norm(ref)
         assert err <= 1e-12, (rO, rel, err)
         worst = max(worst, err)
         worst_naive = max(worst_naive, np.linalg.norm(naive(rO, rel) - ref) / np.linalg.norm(ref))
     # the reference can tell a cancellation-free formula from naive differencing
     assert worst_naive > 1e3 * max(worst, 1e-16)
-    print(f"_tidal vs 50 digits: {worst:.1e} (naive float64: {worst_naive:.1e})")
+    print(f"tidal vs 50 digits: {worst:.1e} (naive float64: {worst_naive:.1e})")
 
 
 def test_tidal_against_naive_difference_at_moderate_radius():
@@ -82,7 +82,7 @@ def test_tidal_against_naive_difference_at_moderate_radius():
     rng = np.random.default_rng(2)
     for rO, rel in _points(rng, 200, 10.0, (-1, 0.7)):
         ref = naive(rO, rel)
-        got = np.array(_tidal(rO, rel))
+        got = np.array(tidal(rO, rel))
         assert np.linalg.norm(got - ref) <= 1e-12 * np.linalg.norm(ref), (rO, rel)
 
 
@@ -90,12 +90,12 @@ def test_tidal_is_the_gravity_gradient_to_first_order():
     rng = np.random.default_rng(3)
     for rO, rel in _points(rng, 50, R_LEO, (0, 4)):
         rho = np.linalg.norm(rel)
-        got = np.array(_tidal(rO, rel))
+        got = np.array(tidal(rO, rel))
         lin = linear_gradient(rO, rel)
         rel_err = np.linalg.norm(got - lin) / np.linalg.norm(lin)
         assert rel_err <= 5.0 * rho / R_LEO, (rho, rel_err)
         # and the difference is genuinely second order: it halves with ρ
-        half = np.array(_tidal(rO, 0.5 * rel))
+        half = np.array(tidal(rO, 0.5 * rel))
         rel_err_half = np.linalg.norm(half - 0.5 * lin) / np.linalg.norm(0.5 * lin)
         assert rel_err_half == pytest.approx(0.5 * rel_err, rel=0.05, abs=0.0)
 
@@ -103,7 +103,7 @@ def test_tidal_is_the_gravity_gradient_to_first_order():
 @pytest.mark.parametrize("rho", [1e-3, 1.0, 30.0, 3000.0, 4000.0, 5e4])
 def test_tidal_force_is_minus_gradient_of_tidal_potential(rho):
     """Δg = −∇_ρ U at several |ρ| including both sides of the series/closed-form switch
-    of `_tidal_potential` (|q| = 1e-3 at ρ ≈ 3.5 km in LEO)."""
+    of `tidal_potential` (|q| = 1e-3 at ρ ≈ 3.5 km in LEO)."""
     rng = np.random.default_rng(int(rho * 1000) % 2**32)
     for _ in range(20):
         a, b = rng.uniform(0, 2 * math.pi, size=2)
@@ -114,8 +114,8 @@ def test_tidal_force_is_minus_gradient_of_tidal_potential(rho):
         for d in range(2):
             e = np.zeros(2)
             e[d] = h
-            grad[d] = (_tidal_potential(rO, rel + e) - _tidal_potential(rO, rel - e)) / (2 * h)
-        force = np.array(_tidal(rO, rel))
+            grad[d] = (tidal_potential(rO, rel + e) - tidal_potential(rO, rel - e)) / (2 * h)
+        force = np.array(tidal(rO, rel))
         # near the branch switch the closed form of U loses digits (1 − 1/√(1+q) − q/2
         # at q ~ 1e-3): allow 1e-5 there, 1e-6 elsewhere
         tol = 1e-5 if 1e3 <= rho <= 1e4 else 1e-6
@@ -125,10 +125,10 @@ def test_tidal_force_is_minus_gradient_of_tidal_potential(rho):
 def test_tidal_potential_vanishes_to_second_order():
     """U(0) = 0 and U = −½ ρᵀ(3r̂r̂ᵀ − I)ρ/r³ + O(ρ³): the potential of the gradient above."""
     rO = np.array([R_LEO, 0.0])
-    assert _tidal_potential(rO, np.zeros(2)) == 0.0
+    assert tidal_potential(rO, np.zeros(2)) == 0.0
     for rel in (np.array([1.0, 0.0]), np.array([0.0, 1.0]), np.array([3.0, -4.0])):
         want = -0.5 * rel @ linear_gradient(rO, rel)
-        assert _tidal_potential(rO, rel) == pytest.approx(want, rel=1e-5, abs=0.0)
+        assert tidal_potential(rO, rel) == pytest.approx(want, rel=1e-5, abs=0.0)
 
 
 def test_generalised_tidal_forces_derive_from_the_energy_observable():
