@@ -1,4 +1,4 @@
-"""The reference model as an object: parameters → the arrays of `core`, and named access.
+"""Building the reference model: parameters → the arrays of `core`, and named access.
 
 `ReferenceModel(params, n_modes)` fixes the number of modes per link (an int for all six
 links, or a sequence of six).  The modal basis of each link (PP or PF) is part of the
@@ -19,6 +19,7 @@ import numpy as np
 from reference_model import core
 from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
 from rsmcheck.geometry import rot
+from rsmcheck.initial import InitialConfiguration
 from rsmcheck.params import Params
 
 N_MAX_MODES = 6
@@ -213,8 +214,8 @@ class ReferenceModel:
         """Arguments of `core.rhs`/`core.assemble` after (x, u): model arrays, switches."""
         return self.arrays, self.switches(cfg)
 
-    def kinematics(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> tuple:
-        """`core.kinematics` for this model (frames, Jacobians, end effectors)."""
+    def kinematics(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> core.Kinematics:
+        """`core.kinematics` for this model (frames, Jacobians, end effectors; `kin.th`, `kin.rE` …)."""
         return core.kinematics(np.asarray(q, float), np.asarray(qd, float), self.arrays, cfg.basis)
 
     def joint_section_angles(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> tuple:
@@ -280,9 +281,8 @@ class ReferenceModel:
     def point_kinematics(self, q, qd, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, Jacobian (2×nq) and J̇q̇ of end effector 'ee1' or 'ee2', inertial [m]."""
         k = {"ee1": 0, "ee2": 1}[name]
-        out = self.kinematics(q, qd, self._cfg_for((False, False)))
-        rE, JE, cE = out[7], out[9], out[10]
-        return rE[k].copy(), JE[k].copy(), cE[k].copy()
+        kin = self.kinematics(q, qd, self._cfg_for((False, False)))
+        return kin.rE[k].copy(), kin.JE[k].copy(), kin.cE[k].copy()
 
     def grasp_point(self, X_T: np.ndarray, arm: int) -> np.ndarray:
         """Inertial position of the designated grasp point of `arm` (1, 2) on the target."""
@@ -294,7 +294,8 @@ class ReferenceModel:
         """System COM (RSM + target) and its Jacobian w.r.t. [q, X_T] (2×(nq+3))."""
         nq = self.layout.nq
         cfg = self._cfg_for((False, False))
-        th, _, R, _, JR, Jth, *_ = self.kinematics(q, np.zeros(nq), cfg)
+        kin = self.kinematics(q, np.zeros(nq), cfg)
+        th, R, JR, Jth = kin.th, kin.R, kin.JR, kin.Jth
         p = self.params
         m_tot = p.base.mass + p.target.mass + 6 * p.link.mass
         pos = p.base.mass * q[0:2] + p.target.mass * np.asarray(X_T[0:2])
@@ -347,3 +348,22 @@ class ReferenceModel:
                 R_cl[2 * k:2 * k + 2] = Rc[row:row + 2]
                 row += 2
         return ydd[:nq].copy(), ydd[nq:nq + 3].copy(), R_cl
+
+
+def initial_state(model: ReferenceModel, init: InitialConfiguration) -> tuple[np.ndarray, Configuration]:
+    """ODE state and configuration from shared initial conditions: links undeformed and at
+    rest relative to their frames, motors at the joint angles (springs relaxed)."""
+    lay = model.layout
+    x = model.zero_state()
+    x[0:3] = init.base_pose
+    x[3:9] = init.joint_angles
+    x[lay.target] = init.target_pose
+    x[lay.motors] = init.joint_angles
+    x[lay.ns:lay.ns + 3] = init.base_rate
+    x[lay.ns + 3:lay.ns + 9] = init.joint_rates
+    x[lay.target_d] = init.target_rate
+    x[lay.motors_d] = init.joint_rates
+    x[lay.r_O] = init.orbit_r
+    x[lay.v_O] = init.orbit_v
+    cfg = Configuration(grasp_on=init.grasp.copy(), rho_G=init.rho_G.copy(), basis=terminal_basis(init.grasp))
+    return x, cfg

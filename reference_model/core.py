@@ -80,6 +80,11 @@ ModelArrays = namedtuple("ModelArrays", [
     "phi_g", "x_g", "w_g", "mount", "order", "first"])
 #: The switching part: basis[i] of each link, grasp_on[k], held points rho_G[k] (target frame).
 Switches = namedtuple("Switches", ["basis", "grasp_on", "rho_G"])
+#: What `kinematics` returns, eqs. (A.1)–(A.2): per link i (0..5) the frame angle th[i], its
+#: rate om[i], the frame origin R[i] (proximal pin) and its velocity Rd[i], the Jacobians
+#: JR[i] = ∂R_i/∂q, Jth[i] = ∂θ_i/∂q and cR[i] = J̇q̇ of R_i; per end effector k (0, 1) the
+#: same as rE[k], rEd[k], JE[k], cE[k].
+Kinematics = namedtuple("Kinematics", ["th", "om", "R", "Rd", "JR", "Jth", "cR", "rE", "rEd", "JE", "cE"])
 
 
 @njit(cache=True)
@@ -99,7 +104,8 @@ def _bistop(psi, psid, lim, k, c):
 def kinematics(q, qd, m, basis):
     """Frames of the six links and the two end effectors, with Jacobians (A.1) and J̇q̇ (A.2).
 
-    Returns th[6], om[6]                 frame angles and rates
+    Returns a `Kinematics` (named tuple of arrays):
+            th[6], om[6]                 frame angles and rates
             R[6,2], Rd[6,2]              frame origins (proximal pins) and their velocities
             JR[6,2,nq], Jth[6,nq]        ∂R/∂q, ∂θ/∂q
             cR[6,2]                      J̇q̇ of R (the part of R̈ not proportional to q̈)
@@ -196,7 +202,7 @@ def kinematics(q, qd, m, basis):
         JE[k] = Jp
         cE[k, 0] = cx
         cE[k, 1] = cy
-    return th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE
+    return Kinematics(th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE)
 
 
 @njit(cache=True)
@@ -254,7 +260,7 @@ def sensor_values(x, m, sw):
     qd = x[ns:ns + nq]
     XTd = x[ns + nq:ns + ny]
     kin = kinematics(q, qd, m, sw.basis)
-    th, om, R = kin[0], kin[1], kin[2]
+    th, om, R = kin.th, kin.om, kin.R
     psi, psid = joint_section_angles(q, qd, m, sw.basis)
     psi_w, _ = wrist_angles(q, qd, XT, XTd, th, om, m, sw.basis)
     mB = sc[S_MB0] - x[2 * ns + 4]
@@ -273,7 +279,7 @@ def sensor_values(x, m, sw):
         s = math.sin(th[i])
         com[0] += mL * R[i, 0] + c * s1x - s * s1y
         com[1] += mL * R[i, 1] + s * s1x + c * s1y
-    return kin[7], kin[8], psi, psid, psi_w, com / msys, msys
+    return kin.rE, kin.rEd, psi, psid, psi_w, com / msys, msys
 
 
 # =====================================================================================
@@ -418,7 +424,7 @@ def _link_rows(Mg, f, q, qd, kin, rO, aunif, m, basis):
         (Jᵀ M J)[r, c] = Σ_{s<3} J[s, r] (M J)[s, c] + (M J)[3 + r − c0, c]  (r ≥ c0),
     with c0 the first column of the own amplitudes.
     """
-    th, om, R, Rd, JR, Jth, cR = kin[0], kin[1], kin[2], kin[3], kin[4], kin[5], kin[6]
+    th, om, R, JR, Jth, cR = kin.th, kin.om, kin.R, kin.JR, kin.Jth, kin.cR
     for i in range(N_LINKS):
         n = m.nm[i]
         nx = 3 + n
@@ -537,8 +543,8 @@ def _grasp_rows(f, q, qd, XT, XTd, kin, m, sw):
     sc = m.sc
     nq = m.nq
     ny = nq + 3
-    th, om, Jth = kin[0], kin[1], kin[5]
-    rE, rEd, JE, cE = kin[7], kin[8], kin[9], kin[10]
+    th, om, Jth = kin.th, kin.om, kin.Jth
+    rE, rEd, JE, cE = kin.rE, kin.rEd, kin.JE, kin.cE
     nc = 2 * (sw.grasp_on[0] + sw.grasp_on[1])
     G = np.zeros((nc, ny))
     phi = np.zeros(nc)

@@ -1,4 +1,5 @@
-"""Observables (docs/physics.md §11) from a reference-model state.
+"""Sensors and observables (docs/physics.md §11) from a reference-model state: energy,
+momentum, the system COM, the wrist angles.
 
 All positions are relative to the co-moving reference point O, inertial axes, unless the
 suffix says otherwise (`_B`: base frame about the base COM).
@@ -6,11 +7,14 @@ suffix says otherwise (`_B`: base frame about the base COM).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from reference_model import core
 from reference_model.build import Configuration, ReferenceModel
 from reference_model.field import tidal_potential
+from rsmcheck.engine import Sensors
 from rsmcheck.geometry import rot
 
 
@@ -38,7 +42,8 @@ def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) 
     q, qd = x[lay.q], x[lay.qd]
     XT, XTd = x[lay.target], x[lay.target_d]
     mB = prm.base.mass - x[lay.m_used]
-    th, om, R, Rd, *_ = model.kinematics(q, qd, cfg)
+    kin = model.kinematics(q, qd, cfg)
+    th, om, R, Rd = kin.th, kin.om, kin.R, kin.Rd
     ar = model.arrays
     p = mB * qd[0:2] + prm.target.mass * XTd[0:2]
     L = _cross(q[0:2], mB * qd[0:2]) + prm.base.inertia_z * qd[2]
@@ -98,7 +103,8 @@ def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> fl
     mu = prm.orbit.mu
     mB = prm.base.mass - x[lay.m_used]
     e = mB * tidal_potential(rO, q[0:2]) + prm.target.mass * tidal_potential(rO, x[lay.target][0:2])
-    th, _, R, *_ = model.kinematics(q, x[lay.qd], cfg)
+    kin = model.kinematics(q, x[lay.qd], cfg)
+    th, R = kin.th, kin.R
     for i in range(core.N_LINKS):
         n = lay.n_modes[i]
         a = q[lay.modes(i)]
@@ -115,8 +121,8 @@ def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tu
     (docs/physics.md §4.3), whether or not the arm holds the target."""
     lay = model.layout
     q, qd = x[lay.q], x[lay.qd]
-    th, om, *_ = model.kinematics(q, qd, cfg)
-    return core.wrist_angles(q, qd, x[lay.target], x[lay.target_d], th, om, model.arrays, cfg.basis)
+    kin = model.kinematics(q, qd, cfg)
+    return core.wrist_angles(q, qd, x[lay.target], x[lay.target_d], kin.th, kin.om, model.arrays, cfg.basis)
 
 
 def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, float]:
@@ -125,7 +131,8 @@ def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tupl
     prm = model.params
     q = x[lay.q]
     mB = prm.base.mass - x[lay.m_used]
-    th, _, R, *_ = model.kinematics(q, x[lay.qd], cfg)
+    kin = model.kinematics(q, x[lay.qd], cfg)
+    th, R = kin.th, kin.R
     s = mB * q[0:2] + prm.target.mass * x[lay.target][0:2]
     m = mB + prm.target.mass
     for i in range(core.N_LINKS):
@@ -134,8 +141,27 @@ def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tupl
     return s / m, m
 
 
-def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: Configuration,
-            capture_arm: int, capture_point_T: np.ndarray) -> dict[str, np.ndarray | float]:
+def sensors(model: ReferenceModel, t: float, x: np.ndarray, cfg: Configuration) -> Sensors:
+    """What the shared driver's controllers and supervisor read at time t (rsmcheck.engine.Sensors)."""
+    lay = model.layout
+    q, qd = x[lay.q], x[lay.qd]
+    rE, rEd, psi, psid, psi_w, com, m = core.sensor_values(x, *model.core_args(cfg))
+    c, s = math.cos(q[2]), math.sin(q[2])
+    d = com - q[0:2]
+    return Sensors(
+        time=t, base_pose_I=q[0:3].copy(), base_rate_I=qd[0:3].copy(),
+        joint_angles=psi, joint_rates=psid, joint_frame_angles=q[3:9].copy(),
+        joint_frame_rates=qd[3:9].copy(), wrist_angles=psi_w,
+        motor_angles=x[lay.motors].copy(), motor_rates=x[lay.motors_d].copy(),
+        ee_pos_I=rE.copy(), ee_vel_I=rEd.copy(),
+        target_pose_I=x[lay.target].copy(), target_rate_I=x[lay.target_d].copy(),
+        com_pos_B=np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]),
+        grasp_state=cfg.grasp_on.copy(), system_mass=float(m),
+        orbit_r_I=x[lay.r_O].copy(), orbit_v_I=x[lay.v_O].copy())
+
+
+def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: Configuration,
+                capture_arm: int, capture_point_T: np.ndarray) -> dict[str, np.ndarray | float]:
     """Every observable (docs/physics.md §11) at one instant.
 
     capture_arm / capture_point_T: the arm whose gap `capture_gap_B` reports and its
@@ -147,7 +173,8 @@ def observe(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: 
     XT = x[lay.target]
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
     _, Rc = core.solve_constrained(Mg, f, A, Bs, model.arrays)
-    th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE = model.kinematics(q, qd, cfg)
+    kin = model.kinematics(q, qd, cfg)
+    rE, rEd = kin.rE, kin.rEd
     AB_T = rot(q[2]).T
     rB = q[0:2]
     com, msys = system_com(model, x, cfg)

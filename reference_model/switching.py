@@ -76,7 +76,7 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     slope_old = shapes_old(ends[:1], 1)[0]
     s0, sd0 = (slope_old @ q[sl], slope_old @ qd[sl]) if n else (0.0, 0.0)
     kin = model.kinematics(q, qd, cfg)
-    th_old, om = kin[0][link], kin[1][link]
+    th_old, om = kin.th[link], kin.om[link]
 
     if new == PP:
         delta = math.atan2(w_L, L)
@@ -129,7 +129,8 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     th_new = th_old + delta
     r = (rot(th_old) @ np.array([-om * w, om * xi + wd])
          - rot(th_new) @ np.array([-om_new * w_kept, om_new * xi + wd_kept]))
-    _, _, _, _, JR, Jth, *_ = model.kinematics(x[lay.q], x[lay.qd], cfg)
+    kin = model.kinematics(x[lay.q], x[lay.qd], cfg)
+    JR, Jth = kin.JR, kin.Jth
     # ∂ṙ/∂q̇_i = ∂R/∂q_i + ∂θ/∂q_i A(θ')(−w', ξ) + [i = a'_j] A(θ') e_y φ_j
     turn = rot(th_new) @ np.array([-w_kept, xi])
     n_new = np.array([-math.sin(th_new), math.cos(th_new)])
@@ -150,7 +151,7 @@ def capture(model: ReferenceModel, x: np.ndarray, cfg: Configuration, arm: int) 
     e_before = kinetic_energy(model, x, cfg)
     report = switch_basis(model, x, cfg, 3 * k + 2, PP)
     q, qd = x[lay.q], x[lay.qd]
-    rE = model.kinematics(q, qd, cfg)[7][k]
+    rE = model.kinematics(q, qd, cfg).rE[k]
     XT = x[lay.target]
     c, s = math.cos(XT[2]), math.sin(XT[2])
     d = rE - XT[0:2]

@@ -35,6 +35,13 @@ _E3 = _D - _D / 3.0
 _NEWTON_MAX = 7
 _NEWTON_TOL = 0.03  # on the scaled Newton increment, relative to the error tolerance
 
+#: slots of `work`, the bookkeeping of the iteration matrix carried between calls (floats)
+W_HAVE_J = 0  # 1.0 while J belongs to the present system; the owner sets 0.0 when it changes
+W_H_OF_MINV = 1  # the step size Minv = (I − d h J)⁻¹ was formed for (−1.0: none)
+W_JACOBIANS = 2  # Jacobians computed so far
+W_NEWTON_FAILURES = 3  # stage iterations that did not converge
+N_WORK = 4
+
 
 @njit(cache=True)
 def _norm(v, x, rtol, atol):
@@ -80,8 +87,8 @@ def _stage(base, guess, hd, Minv, rtol, atol, u, m, sw):
 def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, m, sw):
     """Integrate from t0 to t1 with inputs u held.
 
-    J, Minv (n×n) and work = [have_J, h_of_Minv, jacobians, newton_failures] carry the
-    iteration matrix between calls (mutated in place).  Returns (x(t1), next h, accepted,
+    J, Minv (n×n) and work (N_WORK: slots W_HAVE_J, W_H_OF_MINV, W_JACOBIANS,
+    W_NEWTON_FAILURES) carry the iteration matrix between calls (mutated in place).  Returns (x(t1), next h, accepted,
     rejected, status) with status 0 ok, 1 non-finite, 2 step size underflow.
     """
     x = x0.copy()
@@ -91,11 +98,11 @@ def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, m, sw):
     nrej = 0
     k1 = rhs(x, u, m, sw)
     fresh = False
-    if work[0] == 0.0:
+    if work[W_HAVE_J] == 0.0:
         J[:, :] = _jacobian(x, k1, u, m, sw, atol, rtol)
-        work[0] = 1.0
-        work[1] = -1.0
-        work[2] += 1.0
+        work[W_HAVE_J] = 1.0
+        work[W_H_OF_MINV] = -1.0
+        work[W_JACOBIANS] += 1.0
         fresh = True
     h = min(h, hmax)
     while t < t1:
@@ -105,9 +112,9 @@ def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, m, sw):
             h = t1 - t
             last = True
         hd = h * _D
-        if abs(work[1] - h) > 1e-9 * h:  # reuse the inverse for the same step size
+        if abs(work[W_H_OF_MINV] - h) > 1e-9 * h:  # reuse the inverse for the same step size
             Minv[:, :] = np.linalg.inv(np.eye(n) - hd * J)
-            work[1] = h
+            work[W_H_OF_MINV] = h
         base2 = x + hd * k1
         Y2, k2, ok = _stage(base2, x + _GAMMA * h * k1, hd, Minv, rtol, atol, u, m, sw)
         if ok:
@@ -115,12 +122,12 @@ def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, m, sw):
             guess = x + h * (0.5 * k1 + 0.5 * k2)
             Y3, k3, ok = _stage(base3, guess, hd, Minv, rtol, atol, u, m, sw)
         if not ok:
-            work[3] += 1.0
+            work[W_NEWTON_FAILURES] += 1.0
             nrej += 1
             if not fresh:  # first remedy: a new Jacobian at the current state
                 J[:, :] = _jacobian(x, k1, u, m, sw, atol, rtol)
-                work[1] = -1.0
-                work[2] += 1.0
+                work[W_H_OF_MINV] = -1.0
+                work[W_JACOBIANS] += 1.0
                 fresh = True
                 h = h_nominal if last else h
             else:

@@ -1,0 +1,84 @@
+"""Stepping of the reference: one control interval at a time with the inputs held
+(zero-order hold, docs/physics.md §6), by the case's integrator, exactly to the next sample.
+
+* `dopri5.integrate_dopri5`: embedded Dormand–Prince 5(4), the default (docs/physics.md §7);
+* `trbdf2.integrate_trbdf2`: TR-BDF2 for quiet, stiff phases; its iteration matrix (J,
+  (I − d h J)⁻¹ and the `work` slots) is kept between control periods and dropped when the
+  system changes (capture, release: `_new_system`).
+
+Both control the error per component against atol_i + rtol·|x_i|, with atol_i = rtol ×
+the scale of its kind of coordinate (`ATOL_SCALE`).  The engine's mirror in the Exudyn
+model is `exudyn_model/stepping.py`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reference_model import core
+from reference_model.dopri5 import integrate_dopri5
+from reference_model.trbdf2 import W_HAVE_J, W_JACOBIANS, integrate_trbdf2
+from rsmcheck.engine import Inputs
+from rsmcheck.errors import SimulationDiverged
+
+#: error-control scale per kind of state component: atol_i = rtol · scale_i
+ATOL_SCALE = {
+    "rigid": 1.0,  # m, rad
+    "modal": 1e-3,  # m (amplitudes are micrometres to millimetres)
+    "rigid_rate": 1.0,  # m/s, rad/s
+    "modal_rate": 1e-1,  # m/s (ω · amplitude)
+    "orbit_r": 1e4,  # m (|r_O| ≈ 7e6 m)
+    "orbit_v": 1e1,  # m/s
+    "mass": 1.0,  # kg
+}
+
+
+class SteppingMixin:
+    """`ReferenceEngine`'s stepping: reads model, cfg, rtol, integrator, h_max; advances
+    x, t, h and the step counters; owns the TR-BDF2 iteration matrix (_jac, _minv, _work)."""
+
+    def _atol(self) -> np.ndarray:
+        lay = self.model.layout
+        s = np.empty(lay.nx)
+        s[:] = ATOL_SCALE["rigid"]
+        s[9:lay.nq] = ATOL_SCALE["modal"]
+        s[lay.ns:2 * lay.ns] = ATOL_SCALE["rigid_rate"]
+        s[lay.ns + 9:lay.ns + lay.nq] = ATOL_SCALE["modal_rate"]
+        s[lay.r_O] = ATOL_SCALE["orbit_r"]
+        s[lay.v_O] = ATOL_SCALE["orbit_v"]
+        s[lay.m_used] = ATOL_SCALE["mass"]
+        return self.rtol * s
+
+    def u_vector(self, inputs: Inputs) -> np.ndarray:
+        """The held inputs as `core`'s input vector u (τ_m, τ_B, thrust)."""
+        u = np.zeros(core.N_INPUTS)
+        u[core.U_TAU_M:core.U_TAU_M + 6] = inputs.tau_m
+        u[core.U_TAU_B] = inputs.tau_B
+        u[core.U_THRUST] = inputs.thrust
+        return u
+
+    def _advance(self, t_next: float, inputs: Inputs) -> None:
+        args = self.model.core_args(self.cfg)
+        u = self.u_vector(inputs)
+        if self.integrator == "dopri5":
+            x, h, nacc, nrej, status = integrate_dopri5(
+                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, u, *args)
+        else:
+            x, h, nacc, nrej, status = integrate_trbdf2(
+                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, self._jac,
+                self._minv, self._work, u, *args)
+        self.steps += nacc
+        self.rejected += nrej
+        if status != 0 or not np.all(np.isfinite(x)):
+            bad = int(np.argmax(~np.isfinite(x))) if not np.all(np.isfinite(x)) else int(np.argmax(np.abs(x)))
+            raise SimulationDiverged(self.name, self.t, "?", f"state[{bad}] "
+                                     + ("non-finite" if status == 1 else "step size underflow"), float(x[bad]))
+        self.x, self.h, self.t = x, h, t_next
+
+    def _new_system(self) -> None:
+        """The system changed (a capture or release): the next implicit step needs a new Jacobian."""
+        self._work[W_HAVE_J] = 0.0
+
+    def _jacobians(self) -> int:
+        """TR-BDF2 Jacobians computed so far."""
+        return int(self._work[W_JACOBIANS])
