@@ -114,26 +114,26 @@ def _fmt(x: float) -> str:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.compare import check_case
-    from rsmcheck.store import dumps_json, output_dir, write_run
+    from rsmcheck.orchestration.compare import check_cases
+    from rsmcheck.store import dumps_json, output_dir
 
     out = output_dir(args.out, "--out") if args.out else None
     cases = [load_case(name) for name in args.case]  # validate every case before running any
     options = {"reference": _engine_options(args.reference, "reference"),
                "exudyn": _engine_options(args.exudyn, "exudyn")}
-    results = []
-    for case in cases:
-        res = check_case(case, args.short, options, parallel=not args.serial)
-        results.append(res)
-        if out is not None and res.runs:
-            out.mkdir(parents=True, exist_ok=True)
-            write_run(out / f"{case.name}.h5", res.runs, case_name=case.name, case_hash=case.file_hash,
-                      param_hash=case.params.digest(), extra_attrs={"short": bool(args.short)})
+    # the runs come from rsmcheck.orchestration.runs.get_runs, as the report's do: stored in
+    # and reused from --out when given, else made in memory; the rows by compare.case_rows
+    results = check_cases(cases, args.short, options, out, rerun=args.rerun, workers=0 if args.serial else 2,
+                          progress=_progress if not args.json and sys.stderr.isatty() else None)
+    for res in results:
+        if res.error is not None:  # reported as before: the cases ahead of it are shown
+            raise res.error
         if args.json:
             continue
         if res.skipped:
-            print(f"{case.name}: NOT CHECKED: {res.skipped}")
+            print(f"{res.case}: NOT CHECKED: {res.skipped}")
             continue
+        case = next(c for c in cases if c.name == res.case)
         variant = "short" if args.short and case.short is not None else "full"
         print(f"{case.name} ({variant}, {res.duration:g} s; wall: reference {res.wall_s['reference']:.1f} s, "
               f"exudyn {res.wall_s['exudyn']:.1f} s)")
@@ -300,8 +300,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="reference engine option, e.g. n_modes=4 (repeatable)")
     p.add_argument("--exudyn", action="append", metavar="KEY=VALUE",
                    help="Exudyn engine option, e.g. substeps=8, n_elements=12 (repeatable)")
-    p.add_argument("--out", help="also write DIR/CASE.h5 with both runs")
-    p.add_argument("--serial", action="store_true", help="run the engines one after the other (default: 2 processes)")
+    p.add_argument("--out", help="store DIR/CASE.h5 with both runs, and reuse the runs stored there "
+                                 "that are current (same case file, parameters, variant, options, code)")
+    p.add_argument("--rerun", action="store_true", help="with --out: run again even what is stored and current")
+    p.add_argument("--serial", action="store_true",
+                   help="run the engines one after the other in this process (default: 2 processes)")
     p = sub.add_parser("modes", help="link and arm eigenfrequencies: analytic, reference, Exudyn")
     p.add_argument("--json", action="store_true", help="one JSON object {\"links\": [...], \"arms\": [...]}")
     p.add_argument("--modes", type=int, help="reference modes per link for the arms (default: each case's)")

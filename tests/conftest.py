@@ -18,6 +18,7 @@ last, so that the main process meanwhile runs everything else.
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import shutil
 import site
@@ -49,7 +50,7 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
 
     from rsmcheck.cases import load_case
     from rsmcheck.orchestration.chain import run_case
-    from rsmcheck.orchestration.compare import _run_one
+    from rsmcheck.orchestration.runs import run_engine
     from rsmcheck.store import read_run
 
     case = load_case(case_name)
@@ -60,18 +61,20 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
             runs, attrs = read_run(run_case(case, [engine], short, out_dir=out))
             return SequenceRun(runs[engine], attrs, out), time.monotonic() - t0
         case = case.variant(short)
-        duration = options.pop("duration", None) or case.duration
-        run = _run_one(engine, case, duration, options)
+        duration = options.pop("duration", None)
+        if duration:
+            case = dataclasses.replace(case, duration=duration)
+        run = run_engine(engine, case, options)
     except Exception as exc:  # noqa: BLE001 — not every exception pickles: send the text
         return None, f"{type(exc).__name__}: {exc}"
     return run, time.monotonic() - t0
 
 
 def expected_wall(case_name: str, engine: str) -> float:
-    """The wall time the case's golden recorded for `engine` (rsmcheck.orchestration.collect); 0 for a
+    """The wall time the case's golden recorded for `engine` (rsmcheck.orchestration.runs); 0 for a
     case that does not load (the tests themselves report on it).  Only orders the jobs."""
     from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.collect import expected_wall as recorded
+    from rsmcheck.orchestration.runs import expected_wall as recorded
     from rsmcheck.errors import InputError
 
     try:

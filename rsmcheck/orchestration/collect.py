@@ -12,26 +12,23 @@
                      phase, each engine's gate result, the Pinocchio rows; with provenance
 ===================  ===========================================================================
 
-The work is a list of independent jobs — one engine on one case, one engine on the mission,
-the Pinocchio checks, the eigenfrequencies — run two at a time in worker processes, longest
-first (each golden's recorded wall time), with a line on the terminal as each ends.
-
-A stored run is reused when its attributes say it was made from the same case file, the
-same parameters, the same variant (short or full) and the same source code
-(`source_digest`: every ``.py`` file of the packages); otherwise it is run again.  The
-verdict is always recomputed from the stored runs (a second, cheap pass).
+The runs come from `rsmcheck.orchestration.runs.get_runs`, the producer `rsmcheck check`
+and `rsmcheck gate` use too: a stored run is reused when its attributes say it was made
+from the same case file, the same parameters, the same variant (short or full), the same
+engine options and the same source code (`source_digest`: every ``.py`` file of the
+packages that runs depend on); otherwise it is run again and stored.  The work — one
+engine on one case, one engine on the mission, the Pinocchio checks, the eigenfrequencies
+— goes through the one worker pool (`runs.run_jobs`): two at a time, longest first (each
+golden's recorded wall time), a line on the terminal as each ends.  The verdict is always
+recomputed from the stored runs (a second, cheap pass, through `runs.read_stored`).
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
-import multiprocessing
 import os
 import platform
-import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -40,146 +37,41 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from rsmcheck.cases import Case, list_cases, load_case, sibling_case
-from rsmcheck.orchestration.compare import check_runs
+from rsmcheck.orchestration.compare import case_rows, check_runs
 from rsmcheck.orchestration.engines import ENGINES
-from rsmcheck.errors import InputError
-from rsmcheck.store import EngineRun, Event, Phase, git_commit, package_versions, read_run, write_json, write_run
+from rsmcheck.orchestration.runs import Job, get_runs, read_stored, source_digest
+from rsmcheck.store import EngineRun, Event, Phase, git_commit, package_versions, write_json
 
-#: the packages whose sources make a run what it is
-SOURCE_PACKAGES = ("rsmcheck", "reference_model", "exudyn_model", "pinocchio_check")
-#: modules of rsmcheck that orchestrate, compare or report: no run depends on them (the
-#: verdict is recomputed from the runs every time)
-NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/orchestration/collect.py", "rsmcheck/orchestration/bench.py",
-               "rsmcheck/orchestration/studies.py", "rsmcheck/orchestration/faults.py",
-               "rsmcheck/orchestration/gate.py", "rsmcheck/orchestration/compare.py")
 VERDICT = "verdict.json"
 PINOCCHIO = "pinocchio.json"
 MODES = "modes.json"
 MISSION = "mission"
+#: the folder of the run files, under the report's folder
+RUNS = "runs"
 
 Progress = Callable[[str], None]
 
 
-def source_digest(root: Path | None = None) -> str:
-    """sha256 over the names and contents of the .py files of SOURCE_PACKAGES that runs
-    depend on (all but NOT_IN_RUNS): a run made by other code is not reused."""
-    root = root or Path(__file__).resolve().parents[2]
-    h = hashlib.sha256()
-    for pkg in SOURCE_PACKAGES:
-        for path in sorted((root / pkg).rglob("*.py")):
-            name = path.relative_to(root).as_posix()
-            if name in NOT_IN_RUNS:
-                continue
-            h.update(name.encode())
-            h.update(path.read_bytes())
-    return h.hexdigest()
+def run_dir(folder: Path) -> Path:
+    """Where `collect` keeps the run files of the report in `folder`: folder/runs/CASE.h5."""
+    return Path(folder) / RUNS
 
 
 # ---------------------------------------------------------------------------------------
-# jobs (each runs in a worker process)
+# the report's jobs besides the runs (they share the pool of rsmcheck.orchestration.runs)
 # ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Job:
-    """One piece of work: `kind` "run" (an engine on a case or the mission), "pinocchio"
-    or "modes"."""
+def pinocchio_rows() -> dict[str, Any]:
+    """The rows of `rsmcheck pinocchio --json` (rigid modes 0 and 2, both arms open)."""
+    from pinocchio_check.compare import run_checks
 
-    kind: str
-    case: str = ""
-    engine: str = ""
-    short: bool = True
-
-    @property
-    def label(self) -> str:
-        return f"{self.case} / {self.engine}" if self.kind == "run" else self.kind
+    return {"checks": [r for n in (0, 2) for r in run_checks(n_modes=n, open_arms=(1, 2))]}
 
 
-@dataclass
-class MissionResult:
-    """A mission job's result: the flight, and each phase's own run (phase name → run)."""
+def modes_rows() -> dict[str, Any]:
+    """The rows of `rsmcheck modes --json`."""
+    from rsmcheck.orchestration.modes import modes_report
 
-    run: EngineRun
-    phases: dict[str, EngineRun]
-
-
-def _do_job(job: Job, workdir: str) -> tuple[Any, float]:
-    """(result, wall seconds); a failed job returns its error text as the result."""
-    t0 = time.monotonic()
-    try:
-        if job.kind == "pinocchio":
-            from pinocchio_check.compare import run_checks
-
-            rows = [r for n in (0, 2) for r in run_checks(n_modes=n, open_arms=(1, 2))]
-            return {"checks": rows}, time.monotonic() - t0
-        if job.kind == "modes":
-            from rsmcheck.orchestration.modes import modes_report
-
-            return modes_report(), time.monotonic() - t0
-        case = load_case(job.case)
-        if case.phases:
-            from rsmcheck.orchestration.chain import run_mission
-
-            out = Path(workdir) / f"{job.case}.{job.engine}"
-            phases: dict[str, dict[str, EngineRun]] = {}
-            runs, _ = read_run(run_mission(case.variant(job.short), [job.engine], job.short, out,
-                                           phase_runs=phases))
-            return MissionResult(runs[job.engine], {p: r[job.engine] for p, r in phases.items()}), \
-                time.monotonic() - t0
-        from rsmcheck.orchestration.compare import _run_one
-
-        variant = case.variant(job.short)
-        return _run_one(job.engine, variant, variant.duration, {}), time.monotonic() - t0
-    except Exception as exc:  # noqa: BLE001 — not every exception pickles: send its text
-        return f"{type(exc).__name__}: {exc}", time.monotonic() - t0
-
-
-def expected_wall(case: Case, engine: str) -> float:
-    """The wall time the case's golden recorded for `engine` [s] (0 without one; a sequence:
-    the sum over its phases).  Only orders the jobs, longest first."""
-    from rsmcheck.orchestration.gate import golden_path
-
-    if case.phases:
-        return sum(expected_wall(load_case(sibling_case(p, Path(case.path))), engine)
-                   for p in case.variant(True).phases)
-    path = golden_path(case.name, engine)
-    try:
-        return float(read_run(path)[0][engine].solver.get("wall_s", 0.0)) if path.exists() else 0.0
-    except (OSError, InputError, KeyError):
-        return 0.0
-
-
-def run_jobs(jobs: Sequence[Job], workdir: Path, progress: Progress | None, workers: int = 2) -> dict[Job, Any]:
-    """Run `jobs` `workers` at a time; {job: result or error text}."""
-    out: dict[Job, Any] = {}
-    if not jobs:
-        return out
-    t0 = time.monotonic()
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {pool.submit(_do_job, job, str(workdir)): job for job in jobs}
-        for n, fut in enumerate(as_completed(futures), 1):
-            job = futures[fut]
-            result, wall = fut.result()
-            out[job] = result
-            if progress:
-                status = "FAILED: " + result if isinstance(result, str) else f"{wall:.0f} s"
-                progress(f"[{n}/{len(jobs)}, {time.monotonic() - t0:.0f} s] {job.label}: {status}")
-    return out
-
-
-# ---------------------------------------------------------------------------------------
-# what is stored, and whether it is current
-# ---------------------------------------------------------------------------------------
-def _current(path: Path, case: Case, engines: Sequence[str], short: bool, digest: str) -> bool:
-    """True when `path` holds runs of every engine made from this case file, parameters,
-    variant and source code."""
-    if not path.is_file():
-        return False
-    try:
-        runs, attrs = read_run(path)
-    except (OSError, InputError):
-        return False
-    return (all(e in runs for e in engines) and attrs.get("case_hash") == case.file_hash
-            and attrs.get("param_hash") == case.params.digest() and bool(attrs.get("short")) == bool(short)
-            and attrs.get("source_digest") == digest)
+    return modes_report()
 
 
 @dataclass
@@ -198,63 +90,30 @@ class Collected:
 def collect(folder: Path, short: bool = True, engines: Sequence[str] = ENGINES,
             case_names: Sequence[str] | None = None, progress: Progress | None = None,
             rerun: bool = False, workers: int = 2) -> Collected:
-    """Run what is missing or out of date, store it in `folder`, write the verdict."""
+    """Run what is missing or out of date, store it in `folder`, write the verdict.  The
+    runs come from `rsmcheck.orchestration.runs.get_runs` (reused when current, else run
+    and stored in folder/runs/), the Pinocchio and eigenfrequency tables ride in the same
+    pool."""
     cases = [load_case(n) for n in case_names] if case_names else [load_case(p) for p in list_cases()]
     engines = list(engines)
     folder = Path(folder)
-    run_dir = folder / "runs"
-    run_dir.mkdir(parents=True, exist_ok=True)
     digest = source_digest()
     t0 = time.monotonic()
     res = Collected(folder, cases, short, engines)
-    jobs: list[Job] = []
-    for case in cases:
-        if not rerun and _current(run_dir / f"{case.name}.h5", case, engines, short, digest):
-            res.reused.append(case.name)
-            continue
-        jobs += [Job("run", case.name, e, short) for e in engines]
-    # A sequence's first phase starts from its own [initial]: the flight's first piece is
-    # that case's run, made by the same calls; it is taken from the flight, not run twice.
-    from_flight = {load_case(j.case).variant(short).phases[0]: j.case for j in jobs
-                   if j.kind == "run" and load_case(j.case).phases}
-    jobs = [j for j in jobs if j.case not in from_flight]
-    jobs.sort(key=lambda j: -expected_wall(load_case(j.case), j.engine))
-    for name in (PINOCCHIO, MODES):
-        if rerun or not _stored_current(folder / name, digest):
-            jobs.append(Job(name.removesuffix(".json")))
-    if progress:
-        progress(f"{len(jobs)} jobs on {workers} processes"
-                 + (f"; stored runs reused: {', '.join(res.reused)}" if res.reused else ""))
-    with tempfile.TemporaryDirectory(prefix="rsmcheck-collect-") as tmp:
-        results = run_jobs(jobs, Path(tmp), progress, workers)
-    by_case: dict[str, dict[str, EngineRun]] = {}
-    for job, result in results.items():
-        if isinstance(result, str):
-            res.failures[job.label] = result
-        elif isinstance(result, MissionResult):
-            by_case.setdefault(job.case, {})[job.engine] = result.run
-            for phase, mission in from_flight.items():
-                if mission == job.case:
-                    by_case.setdefault(phase, {})[job.engine] = result.phases[phase]
-        elif job.kind == "run":
-            by_case.setdefault(job.case, {})[job.engine] = result
+    extra = [Job(name.removesuffix(".json"), fn) for name, fn in ((PINOCCHIO, pinocchio_rows), (MODES, modes_rows))
+             if rerun or not _stored_current(folder / name, digest)]
+    got = get_runs(cases, engines, short, run_dir(folder), rerun=rerun, progress=progress, workers=workers,
+                   extra=extra)
+    res.reused = got.reused
+    res.failures = got.failures
+    for job, outcome in got.extra.items():
+        if outcome.error is not None:
+            res.failures[job.label] = outcome.error_text
         else:
-            write_json(folder / f"{job.kind}.json", {**result, "source_digest": digest})
-    for case in cases:
-        runs = by_case.get(case.name, {})
-        if len(runs) == len(engines):
-            store_runs(folder, case, short, runs, digest)
+            write_json(folder / f"{job.label}.json", {**outcome.value, "source_digest": digest})
     res.wall_s = time.monotonic() - t0
     write_json(folder / VERDICT, verdict(res, digest))
     return res
-
-
-def store_runs(folder: Path, case: Case, short: bool, runs: dict[str, EngineRun], digest: str | None = None) -> Path:
-    """Write `runs` (engine → run) of `case` where `collect` keeps them: folder/runs/CASE.h5."""
-    (Path(folder) / "runs").mkdir(parents=True, exist_ok=True)
-    return write_run(Path(folder) / "runs" / f"{case.name}.h5", runs, case_name=case.name,
-                     case_hash=case.file_hash, param_hash=case.params.digest(),
-                     extra_attrs={"short": bool(short), "source_digest": digest or source_digest()})
 
 
 def _stored_current(path: Path, digest: str) -> bool:
@@ -303,11 +162,9 @@ def phase_runs(mission: Case, short: bool, run: EngineRun) -> list[tuple[Case, f
 
 
 def case_checks(case: Case, short: bool, runs: dict[str, EngineRun]) -> list[dict[str, Any]]:
-    """The rows of `rsmcheck check --json` for one case, from its stored runs."""
-    variant = case.variant(short)
-    if case.phases or not variant.compare or not {"reference", "exudyn"} <= set(runs):
-        return []
-    return [r.as_dict() for r in check_runs(variant, runs["reference"], runs["exudyn"])]
+    """The rows of `rsmcheck check --json` for one case, from its stored runs: the same
+    function (`compare.case_rows`) on the same runs (`runs.read_stored`)."""
+    return [r.as_dict() for r in case_rows(case, short, runs)]
 
 
 def phase_specs(mission: Case, short: bool, phase: Case) -> tuple:
@@ -372,13 +229,13 @@ def provenance(res: Collected, digest: str) -> dict[str, Any]:
 
 
 def verdict(res: Collected, digest: str) -> dict[str, Any]:
-    """Every check row from what is stored in `res.folder`."""
+    """Every check row from the runs stored in `res.folder` that are current (read by
+    `rsmcheck.orchestration.runs.read_stored`, the reader `rsmcheck check --out` uses)."""
     checks, mission, gates = [], [], []
     for case in res.cases:
-        path = res.folder / "runs" / f"{case.name}.h5"
-        if not path.is_file():
+        runs, _ = read_stored(run_dir(res.folder) / f"{case.name}.h5", case, res.short, digest)
+        if not runs:
             continue
-        runs, _ = read_run(path)
         if case.phases:
             mission += mission_checks(case, res.short, runs)
             continue

@@ -46,7 +46,6 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from rsmcheck.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
-from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun
 from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
@@ -264,9 +263,38 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
     return rows
 
 
+def case_rows(case, short: bool, runs: Mapping[str, EngineRun]) -> list[Check]:
+    """The cross-check rows of one stand-alone case from its runs (engine → run): its
+    [compare] table applied to the reference and Exudyn runs of the variant (`short`).
+    The one place both `rsmcheck check` and the report's verdict (rsmcheck.orchestration.collect)
+    compute them; [] for a sequence, a case without a table or a missing engine."""
+    variant = case.variant(short)
+    if case.phases or not variant.compare or not {"reference", "exudyn"} <= set(runs):
+        return []
+    return check_runs(variant, runs["reference"], runs["exudyn"])
+
+
+def not_checked(case, short: bool) -> str:
+    """Why `rsmcheck check` compares nothing for `case` ('' when it compares): a sequence
+    (its phases are checked one by one) or no [compare] table.  A case that only chains
+    from another's end state is an InputError: a check needs both engines at one state."""
+    variant = case.variant(short)
+    if case.phases:
+        return f"a sequence of phases: check its phases ({', '.join(case.phases)}) one by one"
+    if not variant.compare:
+        return "no [compare] table in the case file: nothing is compared"
+    if not variant.has_initial:
+        from rsmcheck.errors import InputError
+
+        raise InputError(variant.path, "initial", f"the case only chains from '{variant.start_from}': "
+                         "a check needs a stand-alone [initial] (both engines from the same state)")
+    return ""
+
+
 @dataclass
 class CaseCheck:
-    """The result of checking one case: its rows, or why there are none."""
+    """The result of checking one case: its rows, or why there are none (`skipped`), or
+    the error that stopped one of its runs (`error`)."""
 
     case: str
     rows: list[Check] = field(default_factory=list)
@@ -274,73 +302,39 @@ class CaseCheck:
     runs: dict[str, EngineRun] = field(default_factory=dict)
     duration: float = 0.0
     wall_s: dict[str, float] = field(default_factory=dict)
+    error: BaseException | None = None
 
     @property
     def passed(self) -> bool:
         return all(r.passed for r in self.rows)
 
 
-def _run_one(engine: str, case, duration: float, options: Mapping[str, Any]) -> EngineRun:
-    """Run one engine on one case (also the target of a worker process)."""
-    from rsmcheck.runner import run
+def check_cases(cases: Sequence[Any], short: bool, options: Mapping[str, Mapping[str, Any]] | None = None,
+                run_dir=None, *, rerun: bool = False, workers: int = 2, progress=None) -> list[CaseCheck]:
+    """`rsmcheck check`: the runs of both engines from `rsmcheck.orchestration.runs.get_runs`
+    (stored in and reused from `run_dir` when given, else made in memory), each case's
+    rows by `case_rows`.  Every case is looked at before anything runs (`not_checked`); a
+    case without rows is returned with `skipped` set and nothing run: it is not a pass."""
+    from rsmcheck.orchestration.runs import get_runs
 
-    return run(make_engine(engine, case, **dict(options)), case, duration)
-
-
-def _run_child(engine: str, case, duration: float, options: Mapping[str, Any]) -> EngineRun:
-    """`_run_one` in a worker process; a bad engine option value becomes an InputError
-    (rsmcheck.errors' exceptions pickle with their arguments, so they reach the parent)."""
-    from rsmcheck.errors import InputError
-
-    try:
-        return _run_one(engine, case, duration, options)
-    except InputError:
-        raise
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"--{engine}", ",".join(f"{k}={v}" for k, v in options.items()) or "options",
-                         str(exc)) from None
-
-
-def run_pair(case, options: Mapping[str, Mapping[str, Any]] | None = None,
-             parallel: bool = True) -> dict[str, EngineRun]:
-    """Run the reference and Exudyn on `case` (the variant to run), in two processes when
-    `parallel` (the engines are independent; 2 cores halve the wall time)."""
-    options = options or {}
-    engines = ("reference", "exudyn")
-    if not parallel:
-        return {e: _run_child(e, case, case.duration, dict(options.get(e, {}))) for e in engines}
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {e: pool.submit(_run_child, e, case, case.duration, dict(options.get(e, {}))) for e in engines}
-        return {e: f.result() for e, f in futures.items()}
-
-
-def check_case(case, short: bool, options: Mapping[str, Mapping[str, Any]] | None = None,
-               parallel: bool = True) -> CaseCheck:
-    """Run both engines on `case` (its short variant with `short`) and apply its [compare]
-    table.  A case without one (or a sequence case) is returned with `skipped` set and
-    nothing run: it is not a pass."""
-    variant = case.variant(short)
-    if case.phases:
-        return CaseCheck(case.name, skipped="a sequence of phases: check its phases "
-                         f"({', '.join(case.phases)}) one by one")
-    if not variant.compare:
-        return CaseCheck(case.name, skipped="no [compare] table in the case file: nothing is compared")
-    if not variant.has_initial:
-        from rsmcheck.errors import InputError
-
-        raise InputError(variant.path, "initial", f"the case only chains from '{variant.start_from}': "
-                         "a check needs a stand-alone [initial] (both engines from the same state)")
-    import time
-
-    t0 = time.monotonic()
-    runs = run_pair(variant, options, parallel)
-    out = CaseCheck(case.name, check_runs(variant, runs["reference"], runs["exudyn"]), runs=runs,
-                    duration=variant.duration)
-    out.wall_s = {e: float(r.solver.get("wall_s", float("nan"))) for e, r in runs.items()}
-    out.wall_s["total"] = time.monotonic() - t0
+    skipped = {c.name: not_checked(c, short) for c in cases}
+    todo = [c for c in cases if not skipped[c.name]]
+    got = get_runs(todo, ("reference", "exudyn"), short, run_dir, rerun=rerun, options=options,
+                   progress=progress, workers=workers)
+    out = []
+    for case in cases:
+        if skipped[case.name]:
+            out.append(CaseCheck(case.name, skipped=skipped[case.name]))
+            continue
+        errors = [x for (c, _), x in got.errors.items() if c == case.name]
+        runs = got.runs[case.name]
+        res = CaseCheck(case.name, runs=runs, duration=case.variant(short).duration,
+                        error=errors[0] if errors else None)
+        if res.error is None:
+            res.rows = case_rows(case, short, runs)
+            res.wall_s = {e: float(r.solver.get("wall_s", float("nan"))) for e, r in runs.items()}
+            res.wall_s["total"] = sum(got.wall_s.get((case.name, e), 0.0) for e in runs)
+        out.append(res)
     return out
 
 

@@ -34,10 +34,9 @@ import numpy as np
 
 from rsmcheck.errors import InputError
 from rsmcheck.observables import NAMES
+from rsmcheck.orchestration.runs import GOLDEN_DIR, golden_path
 from rsmcheck.store import EngineRun, git_commit, read_run, write_run, write_text
 
-ROOT = Path(__file__).resolve().parents[2]
-GOLDEN_DIR = ROOT / "goldens"
 CHANGELOG = "CHANGELOG.md"
 GOLDEN_SCHEMA = 1
 #: samples kept per golden run (evenly strided, the last one always kept)
@@ -129,10 +128,6 @@ def case_inputs_hash(case) -> str:
     with open(case.path, "rb") as f:
         data = strip(tomllib.load(f))
     return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
-
-
-def golden_path(case_name: str, engine: str, root: Path = GOLDEN_DIR) -> Path:
-    return Path(root) / f"{case_name}.{engine}.h5"
 
 
 def kept_samples(n_full: int, max_samples: int = MAX_SAMPLES) -> np.ndarray:
@@ -349,7 +344,7 @@ def append_changelog(root: Path, reason: str, entries: Iterable[tuple[str, str, 
 
 
 # ---------------------------------------------------------------------------------------
-# running: every (case, engine[, perturbed]) job in a pool of two processes
+# running: the fresh runs from rsmcheck.orchestration.runs (its producer and its pool)
 # ---------------------------------------------------------------------------------------
 def gated_cases() -> list:
     """The cases with goldens: every stand-alone case (sequences are gated phase by phase)."""
@@ -358,40 +353,34 @@ def gated_cases() -> list:
     return [c for c in (load_case(p) for p in list_cases()) if not c.phases and c.variant(True).has_initial]
 
 
-def _job(engine: str, case, perturbed: bool) -> EngineRun:
-    from rsmcheck.orchestration.compare import _run_child
-
-    variant = perturbed_case(case) if perturbed else case
-    return _run_child(engine, variant, variant.duration, {})
-
-
 def run_jobs(jobs: list[tuple[Any, str, bool]], progress=None, workers: int = 2) -> dict[tuple[str, str, bool], EngineRun]:
-    """Run (short variant, engine, perturbed) jobs, `workers` at a time; results by
-    (case name, engine, perturbed).  `progress(text)` is told of each finished job."""
-    import multiprocessing
-    import time
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    """Run (short variant, engine, perturbed) jobs on the one pool (`runs.run_jobs`); results
+    by (case name, engine, perturbed).  A failed job raises its error once all have ended."""
+    from rsmcheck.orchestration.runs import Job, expected_wall, run_engine
+    from rsmcheck.orchestration.runs import run_jobs as pool
 
-    out = {}
-    t0 = time.monotonic()
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {pool.submit(_job, engine, case, pert): (case.name, engine, pert) for case, engine, pert in jobs}
-        for n, fut in enumerate(as_completed(futures), 1):
-            key = futures[fut]
-            out[key] = fut.result()
-            if progress:
-                progress(f"{n}/{len(jobs)} {key[0]} / {key[1]}{' (perturbed)' if key[2] else ''} "
-                         f"done at {time.monotonic() - t0:.0f} s")
-    return out
+    todo = [Job(f"{case.name} / {engine}" + (" (perturbed)" if pert else ""), run_engine,
+                (engine, perturbed_case(case) if pert else case), expected_wall(case, engine),
+                (case.name, engine, pert)) for case, engine, pert in jobs]
+    done = pool(todo, progress, workers)
+    for job in todo:
+        if done[job].error is not None:
+            raise done[job].error
+    return {job.key: done[job].value for job in todo}
 
 
 def gate(cases: list, engines: list[str], root: Path = GOLDEN_DIR, progress=None) -> list[GateResult]:
-    """Run the short variant of every case in every engine and compare with its golden.
-    Every golden is read (and a bad one reported, InputError) before anything runs."""
+    """Run the short variant of every case in every engine (fresh runs, nothing stored:
+    `runs.get_runs` without a folder) and compare with its golden.  Every golden is read
+    (and a bad one reported, InputError) before anything runs."""
+    from rsmcheck.orchestration.runs import get_runs
+
     variants = [c.variant(True) for c in cases]
     goldens = {(v.name, e): read_golden(golden_path(v.name, e, root), e) for v in variants for e in engines}
-    runs = run_jobs([(v, e, False) for v in variants for e in engines], progress)
-    return [compare_with_golden(v, runs[(v.name, e, False)], goldens[(v.name, e)]) for v in variants for e in engines]
+    got = get_runs(cases, engines, True, None, progress=progress)
+    for error in got.errors.values():
+        raise error
+    return [compare_with_golden(v, got.runs[v.name][e], goldens[(v.name, e)]) for v in variants for e in engines]
 
 
 def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR, progress=None) -> list[tuple[str, str, list[str]]]:

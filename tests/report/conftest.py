@@ -32,7 +32,8 @@ class Rendered:
 def rendered(run_pool, tmp_path_factory) -> Rendered:
     from pinocchio_check.compare import run_checks
     from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.collect import Collected, source_digest, store_runs, verdict
+    from rsmcheck.orchestration.collect import Collected, run_dir, verdict
+    from rsmcheck.orchestration.runs import source_digest, store_runs
     from rsmcheck.report.build import render
     from rsmcheck.store import write_json
 
@@ -42,9 +43,9 @@ def rendered(run_pool, tmp_path_factory) -> Rendered:
     runs = {}
     for case in cases[:-1]:
         runs[case.name] = {e: run_pool.get(case.name, e) for e in ("reference", "exudyn")}
-        store_runs(folder, case, True, runs[case.name], digest)
+        store_runs(run_dir(folder), case, True, runs[case.name], digest)
     runs["mission"] = {"reference": run_pool.get("mission", "reference").run}
-    store_runs(folder, cases[-1], True, runs["mission"], digest)
+    store_runs(run_dir(folder), cases[-1], True, runs["mission"], digest)
     write_json(folder / "pinocchio.json", {"checks": run_checks(n_states=2, open_arms=(1, 2))})
     res = Collected(folder, cases, True, ["reference", "exudyn"])
     doc = verdict(res, digest)

@@ -319,11 +319,12 @@ def _fake_bench(monkeypatch):
 def _fake_check(monkeypatch):
     import rsmcheck.orchestration.compare as compare
 
-    def check_case(case, short, options, parallel=True):
-        rows = [compare.Check(case.name, "momentum_I", 0.0, 1e-6), compare.Check(case.name, "energy", NAN, 1e-6)]
-        return compare.CaseCheck(case.name, rows=rows, duration=0.1, wall_s={"reference": NAN, "exudyn": INF})
+    def check_cases(cases, short, options, run_dir=None, **kw):
+        return [compare.CaseCheck(case.name, rows=[compare.Check(case.name, "momentum_I", 0.0, 1e-6),
+                                                   compare.Check(case.name, "energy", NAN, 1e-6)],
+                                  duration=0.1, wall_s={"reference": NAN, "exudyn": INF}) for case in cases]
 
-    monkeypatch.setattr(compare, "check_case", check_case)
+    monkeypatch.setattr(compare, "check_cases", check_cases)
 
 
 def _fake_gate(monkeypatch):

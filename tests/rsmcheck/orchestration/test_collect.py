@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 from rsmcheck.cases import load_case
-from rsmcheck.orchestration.collect import (_current, mission_checks, phase_runs, phase_specs, source_digest,
-                                            store_runs)
+from rsmcheck.orchestration.collect import mission_checks, phase_runs, phase_specs
 from rsmcheck.orchestration.compare import check_runs
 from rsmcheck.observables import allocate
 from rsmcheck.store import EngineRun, Event, Phase
@@ -103,20 +100,6 @@ def test_a_sequence_may_only_replace_rows_of_its_phases(tmp_path):
         with pytest.raises(InputError) as err:
             load_case(bad)
         assert field in str(err.value)
-
-
-def test_a_stored_run_is_current_only_for_the_same_case_variant_and_code(tmp_path):
-    case = load_case("free_drift")
-    obs = allocate(3)
-    obs["time"] = np.array([0.0, 0.1, 0.2])
-    runs = {e: EngineRun(e, obs) for e in ("reference", "exudyn")}
-    digest = source_digest()
-    path = store_runs(tmp_path, case, True, runs, digest)
-    assert _current(path, case, ["reference", "exudyn"], True, digest)
-    assert not _current(path, case, ["reference", "exudyn"], False, digest)
-    assert not _current(path, case, ["reference", "exudyn"], True, "0" * 64)
-    other = dataclasses.replace(case, file_hash="f" * 64)
-    assert not _current(path, other, ["reference", "exudyn"], True, digest)
 
 
 @pytest.mark.engine_runs(("mission", "reference", True, ()), ("p2_capture_regrasp", "reference", True, ()))

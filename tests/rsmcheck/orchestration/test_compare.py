@@ -239,7 +239,7 @@ def test_check_runs_both_engines():
     import rsmcheck.orchestration.compare as cmp
 
     case = load_case("flex_arm_step").variant(True)
-    res = cmp.check_case(dataclasses.replace(case, duration=0.1, short=None), short=False, parallel=False)
+    res, = cmp.check_cases([dataclasses.replace(case, duration=0.1, short=None)], short=False, workers=0)
     assert [r.observable for r in res.rows] == [s.observable for s in case.compare]
     for r in res.rows:
         assert math.isfinite(r.error) and r.reference_range > 0

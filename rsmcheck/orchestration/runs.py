@@ -1,0 +1,349 @@
+"""Engine runs: the one producer and reader of runs, and the one worker pool.
+
+Runs flow one way: engines → run files (rsmcheck.store) → `get_runs` → the comparisons.
+`rsmcheck check` (through `compare.check_cases`), `rsmcheck gate` (`gate.gate`) and the
+report (`collect.collect`) all ask `get_runs` for the runs of a list of cases, engines and
+a variant (short or full):
+
+* with a folder (`run_dir`, holding ``CASE.h5`` with every engine's run of the case), a
+  stored run is reused when `read_stored` finds it valid for the current inputs — the
+  same case file (`case_hash`), parameters (`param_hash`), variant (`short`), source code
+  (`source_digest`) and engine options; the missing ones are run, stored beside the valid
+  ones, and read back, so that a fresh run and a reused one reach the comparison alike;
+* without a folder every run is made and kept in memory (the gate: fresh runs only).
+
+The work is done by `run_jobs`: independent jobs in worker processes (spawn), two at a
+time by default, longest first (the wall time each golden recorded, `expected_wall`), a
+line per finished job and a failed job named with its error; `workers=0` runs them in
+this process.  The report's Pinocchio and eigenfrequency jobs and the gate's perturbed
+runs go through the same pool.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import pickle
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+from rsmcheck.cases import Case, load_case, sibling_case
+from rsmcheck.errors import InputError
+from rsmcheck.orchestration.engines import ENGINES, make_engine
+from rsmcheck.store import EngineRun, read_run, write_run
+
+ROOT = Path(__file__).resolve().parents[2]
+#: the gate's golden runs (rsmcheck.orchestration.gate), one file per case and engine
+GOLDEN_DIR = ROOT / "goldens"
+#: the packages whose sources make a run what it is
+SOURCE_PACKAGES = ("rsmcheck", "reference_model", "exudyn_model", "pinocchio_check")
+#: modules of rsmcheck that orchestrate, compare or report: no run depends on them (the
+#: verdict is recomputed from the runs every time)
+NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/orchestration/collect.py", "rsmcheck/orchestration/bench.py",
+               "rsmcheck/orchestration/studies.py", "rsmcheck/orchestration/faults.py",
+               "rsmcheck/orchestration/gate.py", "rsmcheck/orchestration/compare.py",
+               "rsmcheck/orchestration/runs.py")
+
+Progress = Callable[[str], None]
+
+
+def source_digest(root: Path | None = None) -> str:
+    """sha256 over the names and contents of the .py files of SOURCE_PACKAGES that runs
+    depend on (all but NOT_IN_RUNS): a run made by other code is not reused."""
+    root = root or ROOT
+    h = hashlib.sha256()
+    for pkg in SOURCE_PACKAGES:
+        for path in sorted((root / pkg).rglob("*.py")):
+            name = path.relative_to(root).as_posix()
+            if name in NOT_IN_RUNS:
+                continue
+            h.update(name.encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def golden_path(case_name: str, engine: str, root: Path = GOLDEN_DIR) -> Path:
+    """Where the gate keeps the golden run of `case_name` in `engine`."""
+    return Path(root) / f"{case_name}.{engine}.h5"
+
+
+def expected_wall(case: Case, engine: str) -> float:
+    """The wall time the case's golden recorded for `engine` [s] (0 without one; a sequence:
+    the sum over its phases).  Only orders the jobs, longest first."""
+    if case.phases:
+        return sum(expected_wall(load_case(sibling_case(p, Path(case.path))), engine)
+                   for p in case.variant(True).phases)
+    path = golden_path(case.name, engine)
+    try:
+        return float(read_run(path)[0][engine].solver.get("wall_s", 0.0)) if path.exists() else 0.0
+    except (OSError, InputError, KeyError):
+        return 0.0
+
+
+# ---------------------------------------------------------------------------------------
+# the worker pool
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Job:
+    """One piece of work: `fn(*args)` (a module-level function: it is sent to a worker by
+    name), `label` for the progress line, `expected_s` to order the jobs (longest first),
+    `key` for the caller to find what it asked for.  Jobs compare by identity."""
+
+    label: str
+    fn: Callable[..., Any]
+    args: tuple = ()
+    expected_s: float = 0.0
+    key: Any = None
+
+
+@dataclass
+class Outcome:
+    """A job's result, or the exception it raised (`error`), and its wall seconds."""
+
+    value: Any = None
+    error: BaseException | None = None
+    wall_s: float = 0.0
+
+    @property
+    def error_text(self) -> str:
+        return f"{type(self.error).__name__}: {self.error}" if self.error is not None else ""
+
+
+def _call(fn: Callable[..., Any], args: tuple) -> Outcome:
+    """`fn(*args)` timed; an exception is returned, as itself when it pickles (rsmcheck's
+    errors do: a bad input stays an InputError), else as a RuntimeError with its text."""
+    t0 = time.monotonic()
+    try:
+        return Outcome(fn(*args), None, time.monotonic() - t0)
+    except Exception as exc:  # noqa: BLE001 — the caller decides what a failure means
+        try:
+            pickle.loads(pickle.dumps(exc))
+        except Exception:  # noqa: BLE001
+            exc = RuntimeError(f"{type(exc).__name__}: {exc}")
+        exc.__traceback__ = None
+        return Outcome(None, exc, time.monotonic() - t0)
+
+
+def run_jobs(jobs: Sequence[Job], progress: Progress | None = None, workers: int = 2) -> dict[Job, Outcome]:
+    """Run `jobs`, longest first, `workers` at a time in spawned processes (0: one after the
+    other in this process); {job: outcome}.  `progress(text)` gets a line per finished job:
+    how many are done, the time since the start, the job and its wall time or its error."""
+    out: dict[Job, Outcome] = {}
+    if not jobs:
+        return out
+    order = sorted(jobs, key=lambda j: -j.expected_s)  # stable: equal ones keep their order
+    t0 = time.monotonic()
+
+    def done(n: int, job: Job, outcome: Outcome) -> None:
+        out[job] = outcome
+        if progress:
+            status = f"FAILED: {outcome.error_text}" if outcome.error is not None else f"{outcome.wall_s:.0f} s"
+            progress(f"[{n}/{len(jobs)}, {time.monotonic() - t0:.0f} s] {job.label}: {status}")
+
+    if workers <= 0:
+        for n, job in enumerate(order, 1):
+            done(n, job, _call(job.fn, job.args))
+        return out
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(_call, job.fn, job.args): job for job in order}
+        for n, fut in enumerate(as_completed(futures), 1):
+            done(n, futures[fut], fut.result())
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# what a job runs
+# ---------------------------------------------------------------------------------------
+def run_engine(engine: str, case: Case, options: Mapping[str, Any] | None = None) -> EngineRun:
+    """Run one engine on `case` (the variant to run) for its duration.  A bad engine option
+    value becomes an InputError naming the options (exit 2 on the command line)."""
+    from rsmcheck.runner import run
+
+    options = dict(options or {})
+    try:
+        return run(make_engine(engine, case, **options), case, case.duration)
+    except InputError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"--{engine}", ",".join(f"{k}={v}" for k, v in options.items()) or "options",
+                         str(exc)) from None
+
+
+@dataclass
+class SequenceRun:
+    """A sequence case's flight in one engine, and each phase's own run (phase name → run)."""
+
+    run: EngineRun
+    phases: dict[str, EngineRun]
+
+
+def run_sequence(engine: str, case: Case, short: bool, workdir: str,
+                 options: Mapping[str, Any] | None = None) -> SequenceRun:
+    """Fly `case` (a sequence, the base case) in `engine`, its phases chained
+    (rsmcheck.orchestration.chain.run_mission, into `workdir`)."""
+    from rsmcheck.orchestration.chain import run_mission
+
+    out = Path(workdir) / f"{case.name}.{engine}"
+    phases: dict[str, dict[str, EngineRun]] = {}
+    runs, _ = read_run(run_mission(case.variant(short), [engine], short, out,
+                                   options={engine: dict(options or {})} if options else None,
+                                   phase_runs=phases))
+    return SequenceRun(runs[engine], {p: r[engine] for p, r in phases.items()})
+
+
+# ---------------------------------------------------------------------------------------
+# run files: the one reader and writer of stored runs
+# ---------------------------------------------------------------------------------------
+def run_path(run_dir: Path, case: Case) -> Path:
+    return Path(run_dir) / f"{case.name}.h5"
+
+
+def _options_attr(options: Mapping[str, Mapping[str, Any]]) -> str:
+    return json.dumps({e: dict(o) for e, o in options.items()}, sort_keys=True)
+
+
+def read_stored(path: Path, case: Case, short: bool,
+                digest: str | None = None) -> tuple[dict[str, EngineRun], dict[str, dict[str, Any]]]:
+    """The runs `path` holds that were made from this case file, parameters, variant and
+    source code (`digest`, default `source_digest()`), and each one's engine options:
+    ({engine: run}, {engine: options}); ({}, {}) when the file is missing, unreadable or
+    was made from other inputs."""
+    path = Path(path)
+    if not path.is_file():
+        return {}, {}
+    try:
+        runs, attrs = read_run(path)
+    except (OSError, InputError):
+        return {}, {}
+    if not (attrs.get("case_hash") == case.file_hash and attrs.get("param_hash") == case.params.digest()
+            and bool(attrs.get("short")) == bool(short)
+            and attrs.get("source_digest") == (digest or source_digest())):
+        return {}, {}
+    try:
+        stored_options = json.loads(attrs.get("engine_options", "{}"))
+    except (TypeError, json.JSONDecodeError):
+        return {}, {}
+    return runs, {e: dict(stored_options.get(e, {})) for e in runs}
+
+
+def store_runs(run_dir: Path, case: Case, short: bool, runs: Mapping[str, EngineRun], digest: str | None = None,
+               options: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
+    """Write `runs` (engine → run) of `case` to run_dir/CASE.h5 with what makes them valid:
+    case and parameter hashes, variant, source digest, each engine's options."""
+    order = [e for e in ENGINES if e in runs] + [e for e in runs if e not in ENGINES]
+    return write_run(run_path(run_dir, case), {e: runs[e] for e in order}, case_name=case.name,
+                     case_hash=case.file_hash, param_hash=case.params.digest(),
+                     extra_attrs={"short": bool(short), "source_digest": digest or source_digest(),
+                                  "engine_options": _options_attr({e: (options or {}).get(e, {}) for e in order})})
+
+
+# ---------------------------------------------------------------------------------------
+# the producer
+# ---------------------------------------------------------------------------------------
+@dataclass
+class RunSet:
+    """What `get_runs` returns: case name → engine → run, and how it was obtained."""
+
+    runs: dict[str, dict[str, EngineRun]] = field(default_factory=dict)
+    #: (case, engine) → the exception its job raised
+    errors: dict[tuple[str, str], BaseException] = field(default_factory=dict)
+    #: cases whose runs were all read from their stored file
+    reused: list[str] = field(default_factory=list)
+    #: (case, engine) → wall seconds of the job that made the run (absent: reused)
+    wall_s: dict[tuple[str, str], float] = field(default_factory=dict)
+    #: the outcomes of the caller's `extra` jobs
+    extra: dict[Job, Outcome] = field(default_factory=dict)
+
+    @property
+    def failures(self) -> dict[str, str]:
+        """'case / engine' → error text, for every run that could not be made."""
+        return {f"{c} / {e}": f"{type(x).__name__}: {x}" for (c, e), x in self.errors.items()}
+
+
+def get_runs(cases: Sequence[Case], engines: Sequence[str], short: bool, run_dir: Path | None = None, *,
+             rerun: bool = False, options: Mapping[str, Mapping[str, Any]] | None = None,
+             progress: Progress | None = None, workers: int = 2, extra: Sequence[Job] = ()) -> RunSet:
+    """The runs of `cases` (base cases; their short variants with `short`) in `engines`.
+
+    With `run_dir`, the valid stored runs are read (`read_stored`: same case file,
+    parameters, variant, source code and engine options) unless `rerun`, the others are
+    run, stored there beside the valid ones and read back.  Without, everything is run and
+    kept in memory.  `options`: engine → constructor options.  A sequence case is flown
+    with its phases chained; its first phase, when asked for too, is cut from the flight
+    instead of being run twice (the same calls make it).  `extra` jobs share the pool.
+    A job that fails leaves its run out (`RunSet.errors`); the others go on."""
+    cases = list({c.name: c for c in cases}.values())  # a case named twice is run once
+    engines = list(engines)
+    options = {e: dict((options or {}).get(e, {})) for e in engines}
+    digest = source_digest() if run_dir is not None else None
+    res = RunSet()
+    missing: dict[str, list[str]] = {}
+    for case in cases:
+        have: dict[str, EngineRun] = {}
+        if run_dir is not None and not rerun:
+            stored, made_with = read_stored(run_path(run_dir, case), case, short, digest)
+            have = {e: stored[e] for e in engines if e in stored and made_with[e] == options[e]}
+        res.runs[case.name] = have
+        missing[case.name] = [e for e in engines if e not in have]
+        if not missing[case.name]:
+            res.reused.append(case.name)
+    by_name = {c.name: c for c in cases}
+    from_flight: dict[tuple[str, str], str] = {}  # (first phase, engine) → sequence
+    for case in cases:
+        if case.phases:
+            first = case.variant(short).phases[0]
+            for e in missing[case.name]:
+                if first in by_name and e in missing[first]:
+                    from_flight[(first, e)] = case.name
+    with tempfile.TemporaryDirectory(prefix="rsmcheck-runs-") as workdir:
+        jobs = []
+        for case in cases:
+            for e in missing[case.name]:
+                if (case.name, e) in from_flight:
+                    continue
+                fn, args = ((run_sequence, (e, case, short, workdir, options[e])) if case.phases
+                            else (run_engine, (e, case.variant(short), options[e])))
+                jobs.append(Job(f"{case.name} / {e}", fn, args, expected_wall(case, e), (case.name, e)))
+        if progress and (jobs or extra):
+            progress(f"{len(jobs) + len(extra)} jobs " + (f"on {workers} processes" if workers > 0 else "in this process")
+                     + (f"; stored runs reused: {', '.join(res.reused)}" if res.reused else ""))
+        outcomes = run_jobs([*jobs, *extra], progress, workers)
+    fresh: dict[str, dict[str, EngineRun]] = {}
+    for job in jobs:
+        oc = outcomes[job]
+        name, e = job.key
+        if oc.error is not None:
+            res.errors[(name, e)] = oc.error
+            continue
+        res.wall_s[(name, e)] = oc.wall_s
+        if isinstance(oc.value, SequenceRun):
+            fresh.setdefault(name, {})[e] = oc.value.run
+            for (phase, pe), seq in from_flight.items():
+                if seq == name and pe == e:
+                    fresh.setdefault(phase, {})[e] = oc.value.phases[phase]
+        else:
+            fresh.setdefault(name, {})[e] = oc.value
+    for (phase, e), seq in from_flight.items():
+        if (seq, e) in res.errors:
+            res.errors[(phase, e)] = res.errors[(seq, e)]
+    res.extra = {job: outcomes[job] for job in extra}
+    for case in cases:
+        new = fresh.get(case.name, {})
+        if not new:
+            continue
+        if run_dir is None:
+            res.runs[case.name].update(new)
+            continue
+        # keep what the file holds that is still valid (other engines, other options)
+        kept, made_with = read_stored(run_path(run_dir, case), case, short, digest)
+        path = store_runs(run_dir, case, short, {**kept, **new}, digest,
+                          {**made_with, **{e: options[e] for e in new}})
+        stored, made_with = read_stored(path, case, short, digest)
+        res.runs[case.name] = {e: stored[e] for e in engines if e in stored and made_with[e] == options[e]}
+    res.runs = {c.name: {e: res.runs[c.name][e] for e in engines if e in res.runs[c.name]} for c in cases}
+    return res
