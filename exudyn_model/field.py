@@ -11,11 +11,32 @@ potential energy per unit mass, −∇_ρ U = Δg (r_O fixed), is
     U = −μ/|r_O+ρ| + μ/|r_O| − μ r_O·ρ/|r_O|³ = μ (h(q) + |ρ|²/(2|r_O|²))/|r_O|,
     h(q) = 1 − (1+q)^(−1/2) − q/2,
 to second order −μ ρᵀ(3 r̂r̂ᵀ − I)ρ/(2|r_O|³) (negative along the radial: it stretches).
+
+The machinery that applies it (docs/physics.md §5, docs/exudyn.md §1): one
+`ObjectGenericODE2` without matrices, the *carrier*, over every mass coordinate (base,
+target, the links' nodes) receives the field's generalised forces: the tidal part at the
+positions of the start of each control period, held over the period (`_tidal_forces`), and
+the uniform thrust inertia (`_uniform_field_matrix`), set at every time step by
+`_ThrustInertia`; the co-moving point O follows its orbit with the period's mean thrust
+acceleration (`_advance_orbit`).  `FieldMixin` is that part of
+`exudyn_model.engine.ExudynEngine`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import math
+import sys
+
 import numpy as np
+
+sys.exudynFast = True  # the engine's build: import order must not matter
+# exudyn announces the fast build on stdout: keep it out of `--json` output
+with contextlib.redirect_stdout(io.StringIO()):
+    import exudyn as exu  # noqa: E402
+
+N_GAUSS_FIELD = 4  # Gauss points per element for the tidal field, energy and momentum
 
 
 def tidal(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -38,3 +59,137 @@ def tidal_potential(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
     h_exact = 1.0 - 1.0 / np.sqrt(1.0 + np.where(small, 0.0, q)) - 0.5 * q
     h = np.where(small, h_series, h_exact)
     return mu * (h + 0.5 * rho2 / r2) / np.sqrt(r2)
+
+
+class FieldMixin:
+    """`ExudynEngine`'s field and thrust machinery (built by `BuildMixin._build` when the
+    engine has `field`)."""
+
+    def _advance_orbit(self, h: float, a_thr: np.ndarray) -> None:
+        """O over one control interval: r̈_O = g(r_O) + a_thr (physics.md §5), classical RK4
+        on plain floats (a_thr, the interval's mean thrust acceleration, held)."""
+        ax, ay = float(a_thr[0]), float(a_thr[1])
+        if not self.orbit and ax == 0.0 and ay == 0.0:
+            return
+        mu = self.params.orbit.mu if self.orbit else 0.0
+
+        def acc(x: float, y: float) -> tuple[float, float]:
+            r = math.sqrt(x * x + y * y)
+            k = mu / (r * r * r) if mu else 0.0
+            return ax - k * x, ay - k * y
+
+        (x, y), (vx, vy) = self.r_O.tolist(), self.v_O.tolist()
+        a1 = acc(x, y)
+        a2 = acc(x + 0.5 * h * vx, y + 0.5 * h * vy)
+        v2 = (vx + 0.5 * h * a1[0], vy + 0.5 * h * a1[1])
+        a3 = acc(x + 0.5 * h * v2[0], y + 0.5 * h * v2[1])
+        v3 = (vx + 0.5 * h * a2[0], vy + 0.5 * h * a2[1])
+        a4 = acc(x + h * v3[0], y + h * v3[1])
+        v4 = (vx + h * a3[0], vy + h * a3[1])
+        self.r_O = np.array([x + h / 6 * (vx + 2 * v2[0] + 2 * v3[0] + v4[0]),
+                             y + h / 6 * (vy + 2 * v2[1] + 2 * v3[1] + v4[1])])
+        self.v_O = np.array([vx + h / 6 * (a1[0] + 2 * a2[0] + 2 * a3[0] + a4[0]),
+                             vy + h / 6 * (a1[1] + 2 * a2[1] + 2 * a3[1] + a4[1])])
+
+    def _uniform_field_matrix(self) -> np.ndarray:
+        """U with U a = generalised forces of a uniform acceleration field a on every mass
+        element (physics.md §5: M_X[:, R] a), carrier coordinates × 2; rebuilt only when the
+        base mass (propellant) has changed."""
+        if self._uniform is not None and self._uniform[0] == self._mass_base():
+            return self._uniform[1]
+        p = self.params
+        blocks = [np.array([[m, 0.0], [0.0, m], [0.0, 0.0]]) for m in (self._mass_base(), p.target.mass)]
+        for it in self.links:
+            if it.rigid:
+                # about the link COM a uniform field has no moment
+                blocks.append(np.array([[p.link.mass, 0.0], [0.0, p.link.mass], [0.0, 0.0]]))
+            else:
+                blocks.append(self.first.T)
+        self._uniform = (self._mass_base(), np.vstack(blocks))
+        return self._uniform[1]
+
+    def _tidal_forces(self, q) -> np.ndarray:
+        """Generalised forces of the exact tidal field at the current positions (zero without
+        an orbit), carrier coordinates.  One evaluation of the field for every point (base,
+        target, the Gauss points of all links), then distributed on each body's coordinates:
+        a flexible link's points are r_g = S(ξ_g) q_i and its forces Σ_g S(ξ_g)ᵀ ρA w_g Δg_g,
+        the same S for every link (one mesh), so all links go through one product each way."""
+        if not self.orbit:
+            return np.zeros(self._n_carrier)
+        p = self.params
+        mu = p.orbit.mu
+        D = self._field_D  # (2 n_g) × n_coords: rows x_g, y_g of every Gauss point
+        n_g = D.shape[0] // 2
+        flex_points = (q[self._flex_coords] @ D.T).reshape(-1, 2)  # link after link
+        xs_rigid, ws_rigid = self._rigid_gauss
+        rigid_points = []
+        for it in self.links:
+            if it.rigid:
+                qi = q[it.coords]
+                rigid_points.append(qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])]))
+        g = tidal(mu, self.r_O, np.vstack([q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :],
+                                           flex_points, *rigid_points]))
+        n_flex = len(self._flex)
+        g_flex = g[2:2 + n_flex * n_g].reshape(n_flex, n_g, 2)
+        # Σ_g Sᵀ(ξ_g) f_g: point forces at the Gauss points on each link's coordinates
+        q_flex = (g_flex * self._field_weights[None, :, None]).reshape(n_flex, 2 * n_g) @ D
+        out = [np.array([self._mass_base() * g[0, 0], self._mass_base() * g[0, 1], 0.0]),
+               np.array([p.target.mass * g[1, 0], p.target.mass * g[1, 1], 0.0])]
+        flex_rows, rigid_pts = iter(q_flex), iter(rigid_points)
+        k = 2 + n_flex * n_g
+        for it in self.links:
+            if not it.rigid:
+                out.append(next(flex_rows))
+                continue
+            pts = next(rigid_pts)
+            f = p.link.rho_a * ws_rigid[:, None] * g[k:k + len(pts)]
+            k += len(pts)
+            lever = pts - q[it.coords][:2]
+            out.append(np.array([f[:, 0].sum(), f[:, 1].sum(), np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
+        return np.concatenate(out)
+
+
+class _ThrustInertia:
+    """The uniform thrust-inertia field −(T/m_sys) A(θ_B) e_x of physics.md §5, evaluated at
+    every time step (a `PreStepUserFunction`): its direction follows the base attitude
+    within the control period, as in the reference, where it is part of the right-hand
+    side.  θ_B is taken at the end of the step (θ_B + h ω_B from the start of the step:
+    generalized-α balances forces at t_n+1), so the direction lags by O(h²).  The tidal
+    part and the masses are held over the control interval (`hold`).
+
+    Holds no reference to the engine (the paused solver thread keeps this object alive).
+    """
+
+    def __init__(self, carrier: int, base_node: int, theta_ref: float):
+        self.carrier, self.base_node, self.theta_ref = carrier, base_node, theta_ref
+        self.q_held = np.zeros(0)
+        self.U = np.zeros((0, 2))
+        self.accel = 0.0  # T/m_sys [m/s²]
+        self.impulse = np.zeros(2)  # ∫ (T/m_sys) A(θ_B) e_x dt over the current interval [m/s]
+        self.t_last = 0.0
+
+    def hold(self, tidal: np.ndarray, U: np.ndarray, accel: float, t_start: float) -> None:
+        self.q_held, self.U, self.accel = tidal, U, float(accel)
+        self.impulse = np.zeros(2)
+        self.t_last = t_start
+
+    def forces(self, theta_b: float) -> np.ndarray:
+        a = self.accel * np.array([math.cos(theta_b), math.sin(theta_b)])
+        return self.q_held - self.U @ a
+
+    def __call__(self, mbs, t: float) -> bool:
+        if self.accel == 0.0:
+            return True
+        h = t - self.t_last  # t: the end of the step about to be taken (the state: its start)
+        self.t_last = t
+        q = mbs.GetNodeOutput(self.base_node, exu.OutputVariableType.Coordinates)
+        v = mbs.GetNodeOutput(self.base_node, exu.OutputVariableType.Coordinates_t)
+        theta = self.theta_ref + q[2] + h * v[2]
+        mbs.SetObjectParameter(self.carrier, "forceVector", self.forces(theta))
+        th_mid = self.theta_ref + q[2] + 0.5 * h * v[2]
+        self.impulse += h * self.accel * np.array([math.cos(th_mid), math.sin(th_mid)])
+        return True
+
+    def mean_acceleration(self, span: float) -> np.ndarray:
+        """The thrust acceleration of O averaged over the interval just integrated."""
+        return self.impulse / span if span > 0.0 else np.zeros(2)

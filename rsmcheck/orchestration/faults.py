@@ -88,13 +88,13 @@ FAULTS: tuple[Fault, ...] = (
           "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, None)",
           "release: the generalised momentum the PF basis cannot carry is dropped, not given back"),
     # ---- the Exudyn model ------------------------------------------------------------
-    Fault("exu_rotor_inertia", "exudyn", "exudyn_model/engine.py",
+    Fault("exu_rotor_inertia", "exudyn", "exudyn_model/build.py",
           "M[6, 6] = mo.inertia", "M[6, 6] = 0.9 * mo.inertia",
           "Exudyn: gear-motor rotor inertia B_m 10 % low"),
-    Fault("exu_hub_inertia", "exudyn", "exudyn_model/engine.py",
+    Fault("exu_hub_inertia", "exudyn", "exudyn_model/build.py",
           "inertia=p.link.inertia_extra))", "inertia=0.0))",
           "Exudyn: the links' extra rotary inertia (hub body) left out"),
-    Fault("exu_bistop_stiffness", "exudyn", "exudyn_model/engine.py",
+    Fault("exu_bistop_stiffness", "exudyn", "exudyn_model/build.py",
           "limitStopsStiffness=w.stiffness,", "limitStopsStiffness=0.5 * w.stiffness,",
           "Exudyn: wrist bistop stiffness halved"),
     # ---- shared inputs: both engines move together -------------------------------------

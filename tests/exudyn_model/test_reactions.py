@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from exudyn_model import reactions
-from exudyn_model.engine import ExudynEngine, exu
+from exudyn_model.build import exu
+from exudyn_model.engine import ExudynEngine
 from exudyn_model.reactions import ConstraintForces
 from rsmcheck.cases import load_case
 from rsmcheck.engine import Inputs

@@ -1,0 +1,108 @@
+"""Capture and release in the Exudyn model (docs/physics.md §4.2, §4.4; docs/exudyn.md §1):
+the grasp joint and the wrist bistop switched by `activeConnector`, the terminal link's
+frame redefined by switching its prismatic constraint (PP: chord, PF: mass-orthogonal
+axis), and the velocities projected on the active constraints (plastic impact).  The
+reference's mirror is `reference_model/switching.py`.
+
+`SwitchingMixin` is that part of `exudyn_model.engine.ExudynEngine`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from exudyn_model import reactions
+from exudyn_model.build import PF, PP
+from rsmcheck.errors import SimulationDiverged
+from rsmcheck.geometry import rot
+
+
+class SwitchingMixin:
+    """`ExudynEngine`'s capture and release (`_capture`, `_release`)."""
+
+    def _capture(self, arm: int) -> dict[str, float]:
+        self._pause()
+        k = arm - 1
+        info = self._switch_basis(3 * k + 2, PP)
+        q, v = self._qv()
+        rE, _ = self._end_effectors(q, v)
+        XT = q[self.i_target]
+        self.rho_G[k] = rot(XT[2]).T @ (rE[k] - XT[:2])
+        mbs = self.mbs
+        mbs.SetMarkerParameter(self.grasp_markers[k], "localPosition", [*self.rho_G[k], 0.0])
+        mbs.SetObjectParameter(self.grasp_joints[k], "activeConnector", True)
+        mbs.SetObjectParameter(self.bistops[k], "activeConnector", True)
+        self.grasp_on[k] = 1
+        info["impact_loss_J"] = self._plastic_impact()
+        self._restart()
+        return info
+
+    def _release(self, arm: int) -> dict[str, float]:
+        self._pause()
+        k = arm - 1
+        mbs = self.mbs
+        mbs.SetObjectParameter(self.grasp_joints[k], "activeConnector", False)
+        mbs.SetObjectParameter(self.bistops[k], "activeConnector", False)
+        self.grasp_on[k] = 0
+        info = self._switch_basis(3 * k + 2, PF)
+        info["impact_loss_J"] = self._plastic_impact()
+        self._restart()
+        return info
+
+    def _switch_basis(self, i: int, new: str) -> dict[str, float]:
+        """Redefine the frame of terminal link i (docs/physics.md §4.4): the frame body turns
+        by δ to the chord (PP) or to the mass-orthogonal axis (PF); the beam, the pins and
+        the rotor do not move, so θ_J3 jumps by δ and there is no projection residual.  The
+        frame body keeps its angular velocity: the caller's `_plastic_impact` brings it to
+        the new axis's rate, coupling J_extra to the system by internal impulses
+        (physics.md §2.3, momentum conserved)."""
+        it = self.links[i]
+        if it.rigid or it.basis == new:
+            it.basis = new
+            return {"delta_rad": 0.0, "residual_m": 0.0, "residual_mps": 0.0}
+        q, _ = self._qv()
+        qi = q[it.coords]
+        R = qi[0:2]
+        if new == PP:
+            d = qi[-4:-2] - R
+        else:
+            d = self.moment @ qi - 0.5 * self.params.link.mass * self.params.link.length * R
+        theta_new = math.atan2(d[1], d[0])
+        j = self.i_frame[i]
+        th_old = q[j]
+        delta = math.remainder(theta_new - th_old, 2 * math.pi)
+        sd = self.mbs.systemData
+        qc = np.asarray(sd.GetODE2Coordinates())
+        qc[j] += delta
+        sd.SetODE2Coordinates(qc)
+        self.mbs.SetObjectParameter(it.pp_joint, "activeConnector", new == PP)
+        self.mbs.SetObjectParameter(it.pf_joint, "activeConnector", new == PF)
+        it.basis = new
+        return {"delta_rad": float(delta), "residual_m": 0.0, "residual_mps": 0.0}
+
+    def _plastic_impact(self) -> float:
+        """Mass-weighted projection of the velocities on the active constraints
+        (docs/physics.md §4.2, and §2.3 at a basis switch): [M Gᵀ; G 0][v⁺; μ] = [M v; 0].
+        Returns the energy lost."""
+        # M and the constraint Jacobian at the current state from Exudyn's own functions, by
+        # the separate static solver object of exudyn_model.reactions (the integrator's own
+        # matrices are factorised sparse and must not be disturbed; that helper also keeps
+        # the system state that the static solver's initialisation would overwrite)
+        mbs = self.mbs
+        cf = reactions.for_engine(self)
+        M = cf.mass_matrix()
+        J = cf.constraint_jacobian()
+        n2 = cf.n2
+        if not (np.all(np.isfinite(M)) and np.all(np.isfinite(J))):
+            raise SimulationDiverged(self.name, self.t, "?", "mass matrix / constraint Jacobian at a capture or release", float("nan"))
+        G = J[n2:, :n2]  # AE rows (no ODE1 coordinates)
+        G = G[np.any(G != 0.0, axis=1)]
+        v = np.asarray(mbs.systemData.GetODE2Coordinates_t())
+        nc = G.shape[0]
+        K = np.block([[M, G.T], [G, np.zeros((nc, nc))]])
+        sol = np.linalg.lstsq(K, np.concatenate([M @ v, np.zeros(nc)]), rcond=None)[0]
+        vp = sol[:n2]
+        mbs.systemData.SetODE2Coordinates_t(vp)
+        return float(0.5 * v @ M @ v - 0.5 * vp @ M @ vp)
