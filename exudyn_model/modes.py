@@ -1,5 +1,10 @@
-"""Eigenfrequencies from Exudyn: one link (`links.link_frequencies`) and the coupled,
-linearised robot in a case's configuration (for `rsmcheck modes`).
+"""Linearisation of the Exudyn model: one link's eigenfrequencies (`links.link_frequencies`),
+the coupled frequencies of the robot at rest in a case's configuration (`rsmcheck modes`)
+and the linear plant of a case at its initial state (the closed-loop analysis,
+rsmcheck.orchestration.closed_loop).  `coupled_frequencies` and `linear_plant` mirror
+`reference_model/modes.py`: the same signatures (rsmcheck/engine.py), `engine_options`
+going to `ExudynEngine` (n_elements, default `links.N_ELEMENTS_DEFAULT` here, not the
+case's [exudyn] table).
 
 `coupled_frequencies` builds the engine's full model (base, target, six ANCF links with their
 frame bodies, rotors, active grasps) in the case's initial configuration *at rest*, without
@@ -15,8 +20,10 @@ from __future__ import annotations
 import numpy as np
 
 from exudyn_model import links
-from exudyn_model.links import link_frequencies  # noqa: F401  (re-exported)
+from exudyn_model.links import link_frequencies
 from rsmcheck.cases import at_rest, undamped
+
+__all__ = ["at_rest_undamped", "coupled_frequencies", "linear_plant", "link_frequencies"]
 
 
 def at_rest_undamped(case, params=None):
@@ -24,19 +31,19 @@ def at_rest_undamped(case, params=None):
     return undamped(at_rest(case), params)
 
 
-def coupled_frequencies(case, n: int = 6, n_elements: int = links.N_ELEMENTS_DEFAULT,
-                        params=None, f_min: float = 1.0) -> np.ndarray:
-    """The first `n` non-zero eigenfrequencies [Hz] of the linearised robot of `case`."""
+def coupled_frequencies(case, n: int = 6, f_min: float = 1.0, **engine_options) -> np.ndarray:
+    """The first `n` eigenfrequencies [Hz] above `f_min` of Exudyn's robot linearised at
+    rest in the initial configuration of `case`, undamped."""
     from exudyn_model.engine import ExudynEngine
 
-    engine = ExudynEngine(at_rest_undamped(case, params), n_elements=n_elements)
+    engine_options.setdefault("n_elements", links.N_ELEMENTS_DEFAULT)
+    engine = ExudynEngine(at_rest_undamped(case), **engine_options)
     freqs, _ = engine.mbs.ComputeODE2Eigenvalues(convert2Frequencies=True, ignoreAlgebraicEquations=False)
     freqs = np.asarray(freqs)
     return freqs[freqs > f_min][:n]
 
 
-def linear_plant(case, outputs, n_inputs: int = 7, n_elements: int = links.N_ELEMENTS_DEFAULT,
-                 eps: float = 1e-7):
+def linear_plant(case, outputs, n_inputs: int = 7, eps: float = 1e-7, **engine_options):
     """(A, B, C) of Exudyn's model of `case` linearised at rest in its initial state (damping
     kept): ẋ = A x + B u, y = C x, with x = (z, ż) on the null space N of the constraint
     Jacobian (q = q₀ + N z), u = (τ_m1..6, τ_B) and y = `outputs(sensors)`.
@@ -48,7 +55,8 @@ def linear_plant(case, outputs, n_inputs: int = 7, n_elements: int = links.N_ELE
     from exudyn_model.engine import ExudynEngine
     from exudyn_model.reactions import ConstraintForces
 
-    engine = ExudynEngine(case, n_elements=n_elements)
+    engine_options.setdefault("n_elements", links.N_ELEMENTS_DEFAULT)
+    engine = ExudynEngine(case, **engine_options)
     cf = ConstraintForces(engine.mbs)
     sd = engine.mbs.systemData
     q0 = np.array(sd.GetODE2Coordinates())

@@ -10,7 +10,8 @@ instead.  No Python user function runs inside a Newton iteration.
 Also here: setting the held inputs into the mbs (`_set_inputs`), restarts of the
 integrator after a change of the model or its state or a jump of the inputs (`_restart`,
 `_is_step`), and the retry of a step whose Newton iteration stalled (`_retry_looser`).
-The reference's mirror is `reference_model/stepping.py`.
+The reference's mirror is `reference_model/stepping.py`; so is `rhs_timing`, the cost of one
+right-hand side.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import io
 import math
 import sys
 import threading
+import timeit
 
 import numpy as np
 
@@ -263,3 +265,19 @@ class _Worker:
             self.go.set()
             self.thread.join()
         self.thread = None
+
+
+def rhs_timing(case, n: int = 2000, **engine_options) -> dict[str, float]:
+    """µs per evaluation of Exudyn's right-hand side at the initial state of `case` (best of
+    3): `call_us` one `ComputeODE2RHS` from Python (through `reactions.ConstraintForces`),
+    `compiled_us` NaN (the solver's own calls from C++ cannot be timed alone), `states` the
+    size of the first-order state (2 × ODE2 coordinates).  `engine_options` go to
+    `ExudynEngine`.  The mirror of `reference_model.stepping.rhs_timing`."""
+    from exudyn_model.engine import ExudynEngine  # the engine imports this module
+    from exudyn_model.reactions import ConstraintForces
+
+    engine = ExudynEngine(case, **engine_options)
+    cf = ConstraintForces(engine.mbs)
+    cf.rhs()
+    call = min(timeit.repeat(cf.rhs, number=n, repeat=3)) / n * 1e6
+    return {"call_us": call, "compiled_us": math.nan, "states": 2 * cf.n2}

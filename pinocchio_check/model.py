@@ -320,6 +320,20 @@ def build_model(params: Params, target: str | None = None, base_joint: str = "px
     return b.finish(target)
 
 
+def aba_timing(params: Params, n: int = 2000) -> dict[str, float]:
+    """µs per Pinocchio ABA call from Python on the rigid open chain of the base and arm 1
+    at its neutral configuration (best of 3; `rsmcheck bench`: the scale of a compiled
+    rigid-body step), and `nv`, its number of coordinates."""
+    import timeit
+
+    model = build_model(params, target="arm1").model
+    data = model.createData()
+    q, v, tau = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+    pin.aba(model, data, q, v, tau)
+    return {"call_us": min(timeit.repeat(lambda: pin.aba(model, data, q, v, tau), number=n, repeat=3)) / n * 1e6,
+            "nv": int(model.nv)}
+
+
 # ---------------------------------------------------------------------------------------
 # Quantities of one model in reference coordinates
 # ---------------------------------------------------------------------------------------

@@ -9,6 +9,7 @@ the work, each named by its job as in `exudyn_model/` (so the two engines read s
     stepping.py    advance: one control interval by DP5(4) (dopri5.py) or TR-BDF2 (trbdf2.py)
     switching.py   capture, release, basis switch, plastic impact
     observe.py     sensors, observables, energy, momentum
+    modes.py       linearisation: the linear plant, coupled frequencies
     beam_modes.py  the links' modal bases (shapes, integrals)
 
 The state: the ODE state `x` (core module doc), the switching configuration `cfg`, time `t`.

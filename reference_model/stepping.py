@@ -8,12 +8,18 @@
 
 Both control the error per component against atol_i + rtol·|x_i|, with atol_i = rtol ×
 the scale of its kind of coordinate (`ATOL_SCALE`).  The engine's mirror in the Exudyn
-model is `exudyn_model/stepping.py`.
+model is `exudyn_model/stepping.py`; so is `rhs_timing`, the cost of one right-hand side
+(`rsmcheck bench`).
 """
 
 from __future__ import annotations
 
+import math
+import time
+import timeit
+
 import numpy as np
+from numba import njit
 
 from reference_model import core
 from reference_model.dopri5 import integrate_dopri5
@@ -82,3 +88,32 @@ class SteppingMixin:
     def _jacobians(self) -> int:
         """TR-BDF2 Jacobians computed so far."""
         return int(self._work[W_JACOBIANS])
+
+
+@njit(cache=True)
+def _rhs_loop(x, u, m, sw, n):  # pragma: no cover - compiled
+    s = 0.0
+    for _ in range(n):
+        s += core.rhs(x, u, m, sw)[0]
+    return s
+
+
+def rhs_timing(case, n: int = 2000, **engine_options) -> dict[str, float]:
+    """µs per evaluation of the right-hand side `core.rhs` at the initial state of `case`
+    (best of 3): `call_us` called from Python (numba's dispatch of the model's arrays
+    included), `compiled_us` inside a compiled loop (what the integrators pay per stage),
+    and `states`, the size of the ODE state.  `engine_options` go to `ReferenceEngine`."""
+    from reference_model.engine import ReferenceEngine  # the engine imports this module
+
+    engine = ReferenceEngine(case, **engine_options)
+    m, sw = engine.model.core_args(engine.cfg)
+    u = np.zeros(core.N_INPUTS)
+    core.rhs(engine.x, u, m, sw)
+    call = min(timeit.repeat(lambda: core.rhs(engine.x, u, m, sw), number=n, repeat=3)) / n * 1e6
+    _rhs_loop(engine.x, u, m, sw, 10)
+    best = math.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        _rhs_loop(engine.x, u, m, sw, 10 * n)
+        best = min(best, (time.perf_counter() - t0) / (10 * n) * 1e6)
+    return {"call_us": call, "compiled_us": best, "states": int(engine.model.layout.nx)}

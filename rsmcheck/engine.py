@@ -4,6 +4,26 @@ Both engines (reference, Exudyn) implement `Engine`; `rsmcheck.runner.run` drive
 through the same sampled-data loop (docs/physics.md §6), so the controller, the capture
 logic and the output sampling are the same code for both.  Nothing here knows how an
 engine computes anything.
+
+Beyond the `Engine` object, each engine package (`reference_model`, `exudyn_model`) offers
+the orchestration (rsmcheck.orchestration.modes, closed_loop, bench) the same functions
+with the same signatures, so that shared code never reads an engine's internals;
+`engine_options` go to the package's engine class (e.g. `n_modes` for the reference,
+`n_elements` for Exudyn):
+
+* `modes.linear_plant(case, outputs, n_inputs=7, eps=1e-7, **engine_options)` → (A, B, C):
+  the engine linearised at the initial state of `case`, damping kept: ẋ = A x + B u,
+  y = C x, with u = (τ_m1..6, τ_B) and y = `outputs(Sensors)`;
+* `modes.coupled_frequencies(case, n=6, f_min=1.0, **engine_options)` → the first `n`
+  eigenfrequencies [Hz] above `f_min` of the robot at rest in the initial configuration
+  of `case`, undamped;
+* `stepping.rhs_timing(case, n=2000, **engine_options)` → {"call_us", "compiled_us",
+  "states"}: µs per evaluation of the engine's right-hand side at the initial state of
+  `case`, from Python and inside a compiled loop (NaN where there is none), and the size
+  of its first-order state.
+
+The engine packages are heavy optional imports (numba, exudyn): shared code imports them
+inside the functions that use them.
 """
 
 from __future__ import annotations

@@ -28,7 +28,6 @@ import math
 import subprocess
 import sys
 import time
-import timeit
 from typing import Any, Sequence
 
 VARIANTS = ("short", "full")
@@ -76,48 +75,24 @@ def bench_run(case: str, engine: str, variant: str) -> dict[str, Any]:
 def rhs_timings(n: int = 2000) -> dict[str, Any]:
     """µs per evaluation: reference RHS compiled and from Python (flexible and rigid),
     Pinocchio ABA from Python (module doc)."""
-    import numpy as np
-    from numba import njit
-
+    # the engine packages are heavy optional imports (numba, pinocchio): imported here, when used
+    from reference_model.stepping import rhs_timing
     from rsmcheck.cases import load_case
-    from reference_model import core
-    from reference_model.engine import ReferenceEngine
-
-    @njit
-    def _loop(x, u, m, sw, n):  # pragma: no cover - compiled
-        s = 0.0
-        for _ in range(n):
-            s += core.rhs(x, u, m, sw)[0]
-        return s
 
     case = load_case("closed_squeeze")
     out: dict[str, Any] = {}
     for key, options in (("reference", {}), ("reference_rigid", {"n_modes": 0, "static_modes": False})):
-        engine = ReferenceEngine(case, **options)
-        m, sw = engine.model.core_args(engine.cfg)
-        u = np.zeros(core.N_INPUTS)
-        core.rhs(engine.x, u, m, sw)
-        out[f"{key}_call"] = min(timeit.repeat(lambda: core.rhs(engine.x, u, m, sw), number=n, repeat=3)) / n * 1e6
-        _loop(engine.x, u, m, sw, 10)
-        best = math.inf
-        for _ in range(3):
-            t0 = time.perf_counter()
-            _loop(engine.x, u, m, sw, 10 * n)
-            best = min(best, (time.perf_counter() - t0) / (10 * n) * 1e6)
-        out[f"{key}_compiled"] = best
-        out[f"{key}_states"] = int(engine.model.layout.nx)
+        timing = rhs_timing(case, n, **options)
+        out[f"{key}_call"] = timing["call_us"]
+        out[f"{key}_compiled"] = timing["compiled_us"]
+        out[f"{key}_states"] = timing["states"]
     try:
-        import pinocchio as pin
-
-        from pinocchio_check.model import build_model
+        from pinocchio_check.model import aba_timing
         from rsmcheck.params import Params
 
-        model = build_model(Params(), target="arm1").model
-        data = model.createData()
-        q, v, tau = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
-        pin.aba(model, data, q, v, tau)
-        out["pinocchio_aba"] = min(timeit.repeat(lambda: pin.aba(model, data, q, v, tau), number=n, repeat=3)) / n * 1e6
-        out["pinocchio_nv"] = int(model.nv)
+        timing = aba_timing(Params(), n)
+        out["pinocchio_aba"] = timing["call_us"]
+        out["pinocchio_nv"] = timing["nv"]
     except Exception as exc:  # noqa: BLE001 — reported instead of a number
         out["pinocchio_aba"] = math.nan
         out["pinocchio_error"] = f"{type(exc).__name__}: {exc}"

@@ -2,8 +2,8 @@
 both engines (docs/exudyn.md §10, p1_rigid_gains).
 
 Each engine supplies its own continuous plant at rest in the case's initial configuration
-(orbit off): ẋ = A x + B u, y = C x (`rsmcheck.orchestration.modes.reference_linear_plant`,
-`exudyn_model.modes.linear_plant`).  The rest is the shared controller's laws
+(orbit off): ẋ = A x + B u, y = C x (`modes.linear_plant` of each engine package, the same
+function in both: rsmcheck/engine.py).  The rest is the shared controller's laws
 (rsmcheck.controllers, physics.md §6), linearised about a hold of that configuration:
 
     r_k = (1 − α) r_{k−1} + α ψ̇_J(t_k)                 rate filter (a case option), α = 1 − e^{−2π f_c Δt}
@@ -92,8 +92,9 @@ def rotor_modes(s: np.ndarray, f_lo: float = 60.0, f_hi: float = 200.0, sigma_ma
 def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
     """Closed-loop rotor-mode exponents of `case` (at rest, initial configuration) in both
     engines: {"reference": s, "exudyn": s}."""
-    from exudyn_model.modes import linear_plant
-    from rsmcheck.orchestration.modes import reference_linear_plant
+    # the engine packages are heavy optional imports (numba, exudyn): imported here, when used
+    from exudyn_model import modes as exudyn_modes
+    from reference_model import modes as reference_modes
 
     case = without_orbit(at_rest(case))
     arms = (ArmModel(case.params, 1), ArmModel(case.params, 2))  # arms are numbered 1 and 2
@@ -102,8 +103,8 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
     ky, kr, alpha = controller_gains(case, q_joint)
     dt = case.solver.control_period
     out = {}
-    for name, plant in (("reference", lambda: reference_linear_plant(case, outputs, N_INPUTS, n_modes)),
-                        ("exudyn", lambda: linear_plant(case, outputs, N_INPUTS, n_elements))):
+    for name, plant in (("reference", lambda: reference_modes.linear_plant(case, outputs, N_INPUTS, n_modes=n_modes)),
+                        ("exudyn", lambda: exudyn_modes.linear_plant(case, outputs, N_INPUTS, n_elements=n_elements))):
         out[name] = rotor_modes(closed_loop_exponents(*plant(), ky, kr, alpha, dt))
     return out
 

@@ -12,10 +12,11 @@ Links (one link, basis PP = pinned-pinned, PF = pinned-free, modes 1–2):
   solver (`exudyn_model.links.link_frequencies`).
 
 Arms (the whole robot linearised at rest in a case's initial configuration, undamped,
-orbit off): the reference's ODE linearised by central differences of its right-hand side
-(`ReferenceModel.rhs`, its public API: the oscillatory eigenvalues; Baumgarte's real ones
-drop out), against Exudyn's eigenvalues of its own M, K on the constraint null space
-(`exudyn_model.modes.coupled_frequencies`).  The Exudyn numbers come from Exudyn alone.
+orbit off): each engine's `modes.coupled_frequencies` (the same function in both packages,
+rsmcheck/engine.py) — the reference's ODE linearised by central differences of its
+right-hand side (the oscillatory eigenvalues; Baumgarte's real ones drop out), against
+Exudyn's eigenvalues of its own M, K on the constraint null space.  The Exudyn numbers come
+from Exudyn alone.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ N_ARM_MODES = 6
 
 
 def reference_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
+    # the engine packages are heavy optional imports: imported here, when used
     from scipy.linalg import eigh
 
     from reference_model.beam_modes import PF, PP, modal_basis
@@ -49,6 +51,7 @@ def reference_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
 
 
 def link_rows(params=None, n_elements: int | None = None) -> list[dict[str, Any]]:
+    # the engine packages are heavy optional imports: imported here, when used
     from exudyn_model import links
     from rsmcheck.beams import analytic_frequencies
     from rsmcheck.params import TABLE2_HZ, Params
@@ -72,56 +75,19 @@ def modal_case(case):
     return without_orbit(undamped(at_rest(case)))
 
 
-def reference_coupled_hz(case, n: int = N_ARM_MODES, n_modes=None) -> np.ndarray:
-    """The first `n` oscillatory frequencies [Hz] of the reference linearised at the initial
-    state of `case` (use `modal_case` first), by central differences of its ODE."""
-    jac, _, _ = reference_linear_plant(case, lambda s: np.zeros(0), n_modes=n_modes)
-    lam = np.linalg.eigvals(jac)
-    return np.sort(np.abs(lam.imag[lam.imag > 2 * np.pi]))[:n] / (2 * np.pi)
-
-
-def reference_linear_plant(case, outputs, n_inputs: int = 7, n_modes=None, eps: float = 1e-7):
-    """(A, B, C) of the reference linearised at the initial state of `case` (damping kept):
-    ẋ = A x + B u on x = (Y*, Ẏ*), u = (τ_m1..6, τ_B), y = `outputs(sensors)`; central
-    differences of its ODE and of its sensors (the counterpart of
-    `exudyn_model.modes.linear_plant`)."""
-    from reference_model import core
-    from reference_model.engine import ReferenceEngine
-
-    ref = ReferenceEngine(case, n_modes=n_modes)
-    model, x0, cfg = ref.model, ref.x.copy(), ref.cfg
-    m = 2 * model.layout.ns
-    u0 = np.zeros(core.N_INPUTS)
-    A, B, cols = np.zeros((m, m)), np.zeros((m, n_inputs)), []
-    for i in range(m):
-        e = eps * max(1.0, abs(x0[i]))
-        dx = np.zeros_like(x0)
-        dx[i] = e
-        A[:, i] = (model.rhs(x0 + dx, u0, cfg)[:m] - model.rhs(x0 - dx, u0, cfg)[:m]) / (2 * e)
-        ys = []
-        for sign in (1.0, -1.0):
-            ref.x = x0 + sign * dx
-            ys.append(outputs(ref.sensors()))
-        cols.append((ys[0] - ys[1]) / (2 * e))
-    ref.x = x0
-    for j in range(n_inputs):
-        u = u0.copy()
-        u[core.U_TAU_M + j if j < 6 else core.U_TAU_B] = 1.0
-        B[:, j] = model.rhs(x0, u, cfg)[:m] - model.rhs(x0, u0, cfg)[:m]
-    return A, B, np.array(cols).T
-
-
 def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n: int = N_ARM_MODES,
              n_modes=None, n_elements: int | None = None) -> list[dict[str, Any]]:
+    # the engine packages are heavy optional imports (numba, exudyn): imported here, when used
     from exudyn_model import links
-    from exudyn_model.modes import coupled_frequencies
+    from exudyn_model import modes as exudyn_modes
+    from reference_model import modes as reference_modes
     from rsmcheck.cases import load_case
 
     rows = []
     for label, case_name, what in configurations:
         case = modal_case(load_case(case_name))
-        fr = reference_coupled_hz(case, n, n_modes)
-        fx = coupled_frequencies(case, n, n_elements=n_elements or links.N_ELEMENTS_DEFAULT)
+        fr = reference_modes.coupled_frequencies(case, n, n_modes=n_modes)
+        fx = exudyn_modes.coupled_frequencies(case, n, n_elements=n_elements or links.N_ELEMENTS_DEFAULT)
         for j in range(min(len(fr), len(fx))):
             rows.append({"configuration": label, "case": case_name, "description": what, "mode": j + 1,
                          "reference_hz": float(fr[j]), "exudyn_hz": float(fx[j]),

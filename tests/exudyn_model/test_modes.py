@@ -24,9 +24,9 @@ pytestmark = pytest.mark.crosscheck
 def reference_frequencies(case, n_modes: int, n: int) -> np.ndarray:
     """Frequencies of the reference linearised by central differences of its ODE (the
     oscillatory eigenvalues; Baumgarte's real eigenvalues −α, −β drop out)."""
-    from rsmcheck.orchestration.modes import reference_coupled_hz
+    from reference_model.modes import coupled_frequencies as reference_coupled_frequencies
 
-    return reference_coupled_hz(case, n=n, n_modes=n_modes)
+    return reference_coupled_frequencies(case, n=n, n_modes=n_modes)
 
 
 @pytest.fixture(scope="module", params=["free_drift", "closed_squeeze"])
