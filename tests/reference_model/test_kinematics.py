@@ -62,14 +62,14 @@ def test_jdot_qdot_against_finite_differences_of_j(model):
     for trial in range(40):
         q, qd = random_state(model, rng)
         cfg = random_cfg(model, rng)
-        out = model.kinematics(q, qd, cfg)
-        JR, Jth, cR, JE, cE = out[4], out[5], out[6], out[9], out[10]
+        kin = model.kinematics(q, qd, cfg)
+        cR, cE = kin.cR, kin.cE
         eps = 1e-6 / max(1.0, np.linalg.norm(qd))
         plus = model.kinematics(q + eps * qd, qd, cfg)
         minus = model.kinematics(q - eps * qd, qd, cfg)
-        fd_R = np.einsum("ijk,k->ij", (plus[4] - minus[4]) / (2 * eps), qd)
-        fd_E = np.einsum("ijk,k->ij", (plus[9] - minus[9]) / (2 * eps), qd)
-        fd_th = ((plus[5] - minus[5]) / (2 * eps)) @ qd
+        fd_R = np.einsum("ijk,k->ij", (plus.JR - minus.JR) / (2 * eps), qd)
+        fd_E = np.einsum("ijk,k->ij", (plus.JE - minus.JE) / (2 * eps), qd)
+        fd_th = ((plus.Jth - minus.Jth) / (2 * eps)) @ qd
         # scale: |J̇q̇| is ~ |q̇|² × lengths; compare relative to the largest entry of the set
         scale_R = np.abs(cR).max()
         scale_E = np.abs(cE).max()
@@ -90,8 +90,8 @@ def test_jacobians_against_finite_differences_of_positions(model):
     for trial in range(10):
         q, qd = random_state(model, rng)
         cfg = random_cfg(model, rng)
-        out = model.kinematics(q, qd, cfg)
-        th, om, R, Rd, JR, Jth, _, rE, rEd, JE, _ = out
+        kin = model.kinematics(q, qd, cfg)
+        JR, Jth, JE, Rd, rEd, om = kin.JR, kin.Jth, kin.JE, kin.Rd, kin.rEd, kin.om
         fd_R = np.zeros_like(JR)
         fd_th = np.zeros_like(Jth)
         fd_E = np.zeros_like(JE)
@@ -101,9 +101,9 @@ def test_jacobians_against_finite_differences_of_positions(model):
             dq[c] = eps
             p = model.kinematics(q + dq, qd, cfg)
             m = model.kinematics(q - dq, qd, cfg)
-            fd_th[:, c] = (p[0] - m[0]) / (2 * eps)
-            fd_R[:, :, c] = (p[2] - m[2]) / (2 * eps)
-            fd_E[:, :, c] = (p[7] - m[7]) / (2 * eps)
+            fd_th[:, c] = (p.th - m.th) / (2 * eps)
+            fd_R[:, :, c] = (p.R - m.R) / (2 * eps)
+            fd_E[:, :, c] = (p.rE - m.rE) / (2 * eps)
         for fd, J in ((fd_R, JR), (fd_E, JE), (fd_th, Jth)):
             err = np.abs(fd - J).max() / np.abs(J).max()
             assert err <= J_REL_TOL, (trial, err)
