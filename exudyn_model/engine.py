@@ -32,7 +32,7 @@ from exudyn_model.stepping import SteppingMixin, _Worker
 from exudyn_model.switching import SwitchingMixin
 from rsmcheck.cases import Case
 from rsmcheck.engine import Inputs, Sensors
-from rsmcheck.initial import build_initial
+from rsmcheck.initial import StartState, build_initial
 from rsmcheck.params import Params
 from rsmcheck.store import package_versions
 
@@ -56,6 +56,12 @@ NEWTON_ATOL_RIGID = 1e-10
 RESTART_THRESHOLD_DEFAULT = 0.01
 
 
+def _first(*values):
+    """The first of `values` that is not None (an explicit option, the case's setting, the
+    engine's default)."""
+    return next(v for v in values if v is not None)
+
+
 class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, ObserveMixin):
     """The system of docs/physics.md built from Exudyn items, stepping through a case.
 
@@ -76,6 +82,8 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
       restart_threshold  input jump (fraction of its limit) that restarts the integrator
       newton_atol     absolute Newton tolerance [N] (default: the case's [exudyn] table, else
                       1000·ε·EA for flexible links, 1e-10 N for rigid ones)
+      start           the end state of a previous run this run continues from
+                      (rsmcheck.initial.StartState), None: the case's [initial]
     """
 
     name = "exudyn"
@@ -86,31 +94,28 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                  newton_atol: float | None = None,
                  field: bool | None = None, restart_on_input_change: bool = True,
                  stepping: str = "continuous", constraints: str | None = None, axial_damping: float = 1.0,
-                 restart_threshold: float | None = None):
+                 restart_threshold: float | None = None, start: StartState | None = None):
         self.case = case
         self.params = params or case.params
         self.rigid = bool(rigid)
         # explicit options > the case's [exudyn] table > the engine defaults
-        self.n_elements = int(n_elements if n_elements is not None
-                              else case.exudyn.get("n_elements", links.N_ELEMENTS_DEFAULT))
-        self.substeps = int(substeps if substeps is not None else case.exudyn.get("substeps", SUBSTEPS_DEFAULT))
+        given = case.exudyn
+        self.n_elements = int(_first(n_elements, given.n_elements, links.N_ELEMENTS_DEFAULT))
+        self.substeps = int(_first(substeps, given.substeps, SUBSTEPS_DEFAULT))
         self.spectral_radius = float(spectral_radius)
         self.newton_rtol = float(newton_rtol)
         p = self.params
-        if newton_atol is None:
-            newton_atol = (NEWTON_ATOL_RIGID if self.rigid
-                           else case.exudyn.get("newton_atol", NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
-        self.newton_atol = float(newton_atol)
+        self.newton_atol = float(NEWTON_ATOL_RIGID if newton_atol is None and self.rigid else
+                                 _first(newton_atol, given.newton_atol,
+                                        NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)
-        self.restart_threshold = float(restart_threshold if restart_threshold is not None
-                                       else case.exudyn.get("restart_threshold", RESTART_THRESHOLD_DEFAULT))
+        self.restart_threshold = float(_first(restart_threshold, given.restart_threshold, RESTART_THRESHOLD_DEFAULT))
         if stepping not in ("continuous", "period"):
             raise ValueError(f"stepping must be 'continuous' or 'period', got {stepping!r}")
         self.stepping = stepping
-        if constraints is None:
-            constraints = case.exudyn.get("constraints", "index3")
+        constraints = _first(constraints, given.constraints, "index3")
         if constraints not in ("index3", "index2"):
             raise ValueError(f"constraints must be 'index3' or 'index2', got {constraints!r}")
         self.constraints = constraints
@@ -118,7 +123,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.dt = case.solver.control_period
         self.mesh = links.LinkMesh(self.n_elements, p.link.length, p.link.rho_a)
         self.I0 = p.link.mass * p.link.length**2 / 3.0
-        init = build_initial(case, p)
+        init = build_initial(case, p, start)
         self.grasp_on = np.array(init.grasp, dtype=np.int64)
         self.rho_G = np.array(init.rho_G, float)
         self.r_O = np.array(init.orbit_r, float)
@@ -130,7 +135,8 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self._held: tuple | None = None
         self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0, "newton_retries": 0}
         self._restart_pending = False
-        self.start = "initial" if case.start_state is None else "rigid end state"
+        self.start = start
+        self.start_label = "initial" if start is None else "rigid end state"
         self._base_start = (np.asarray(init.base_pose, float), np.asarray(init.base_rate, float))
         self._build(init)
         self._index()
@@ -169,7 +175,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                 "newton_retries": self.stats["newton_retries"],
                 "stepping": self.stepping, "constraints": self.constraints,
                 "axial_damping": self.axial_damping,
-                "restart_threshold": self.restart_threshold, "start": self.start}
+                "restart_threshold": self.restart_threshold, "start": self.start_label}
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "exudyn", "numpy")
@@ -214,7 +220,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.rho_G = np.asarray(exact["rho_G"], float).copy()
         for k in range(2):
             self.mbs.SetMarkerParameter(self.grasp_markers[k], "localPosition", [*self.rho_G[k], 0.0])
-        self.start = "exact end state"
+        self.start_label = "exact end state"
         self._restart()
 
     def _position_coordinates(self) -> list[np.ndarray]:

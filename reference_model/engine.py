@@ -25,7 +25,7 @@ from reference_model.stepping import SteppingMixin
 from reference_model.trbdf2 import N_WORK
 from rsmcheck.cases import Case
 from rsmcheck.engine import Inputs, Sensors
-from rsmcheck.initial import build_initial, orbit_start
+from rsmcheck.initial import StartState, build_initial, orbit_start
 from rsmcheck.params import Params
 from rsmcheck.store import package_versions
 
@@ -39,17 +39,23 @@ class ReferenceEngine(SteppingMixin):
 
     Options: n_modes (eigenmodes per link, default the case's), rtol, integrator ("dopri5"
     or "trbdf2"), h_max (largest step), static_modes (docs/physics.md §2.4); each defaults
-    to the case's [solver] / [reference] table, else the engine's default.
+    to the case's [solver] / [reference] table, else the engine's default.  `start`: the
+    end state of a previous run this run continues from (rsmcheck.initial.StartState), None
+    to start from the case's [initial].
     """
 
     name = "reference"
 
     def __init__(self, case: Case, params: Params | None = None, n_modes=None, rtol: float | None = None,
-                 integrator: str | None = None, h_max: float | None = None, static_modes: bool | None = None):
+                 integrator: str | None = None, h_max: float | None = None, static_modes: bool | None = None,
+                 start: StartState | None = None):
         self.params = params or case.params
         self.case = case
+        self.start = start
         if static_modes is None:
-            static_modes = case.reference.get("static_modes", STATIC_MODES_DEFAULT)
+            static_modes = case.reference.static_modes
+        if static_modes is None:
+            static_modes = STATIC_MODES_DEFAULT
         self.model = ReferenceModel(self.params, n_modes if n_modes is not None else case.n_modes,
                                     orbit=case.orbit, static_modes=static_modes)
         self.rtol = rtol if rtol is not None else case.solver.rtol
@@ -57,9 +63,9 @@ class ReferenceEngine(SteppingMixin):
         if self.integrator not in INTEGRATORS:
             raise ValueError(f"integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
         # largest step: explicit option > the case's [reference] table > the integrator's default
-        h_max = h_max if h_max is not None else case.reference.get("h_max")
+        h_max = h_max if h_max is not None else case.reference.h_max
         self.h_max = float(h_max if h_max is not None else (H_MAX if self.integrator == "dopri5" else H_MAX_IMPLICIT))
-        init = build_initial(case, self.params)
+        init = build_initial(case, self.params, start)
         self.x, self.cfg = initial_state(self.model, init)
         self.t = 0.0
         self.h = 1e-4
@@ -118,7 +124,10 @@ class ReferenceEngine(SteppingMixin):
             return
         case = self.case
         if case.orbit and not np.any(x[lay.r_O]):
-            rigid = case.start_state
+            if self.start is None:
+                raise ValueError("an exact state entering an orbit needs the rigid part of its end state "
+                                 "(build the engine with start=StartState(...))")
+            rigid = self.start.rigid
             com = np.asarray(rigid["com_I"], float)
             vcom = np.asarray(rigid["com_vel_I"], float)
             if case.orbit_spec.centre_on_com:

@@ -160,6 +160,36 @@ class SolverSpec:
         return int(round(self.output_period / self.control_period))
 
 
+class _EngineSettings:
+    def given(self) -> dict[str, Any]:
+        """The settings the case file gives (None = not given), without `why`: a run's
+        provenance."""
+        return {k: v for k, v in vars(self).items() if v is not None and k != "why"}
+
+
+@dataclass(frozen=True)
+class ReferenceSettings(_EngineSettings):
+    """[reference]: the reference engine's settings of a case; None = the engine's default
+    (reference_model/engine.py).  `why` is the study behind them (required with h_max)."""
+
+    static_modes: bool | None = None  # static correction shapes (docs/physics.md §2.4)
+    h_max: float | None = None  # largest integration step [s]
+    why: str = ""
+
+
+@dataclass(frozen=True)
+class ExudynSettings(_EngineSettings):
+    """[exudyn]: the Exudyn engine's settings of a case; None = the engine's default
+    (exudyn_model/engine.py).  `why` is the study behind them (required with any)."""
+
+    substeps: int | None = None  # generalized-α steps per control period
+    n_elements: int | None = None  # ANCF elements per link
+    constraints: str | None = None  # "index3" | "index2"
+    restart_threshold: float | None = None  # input jump (fraction of its limit) restarting
+    newton_atol: float | None = None  # absolute Newton tolerance [N]
+    why: str = ""
+
+
 @dataclass(frozen=True)
 class CompareSpec:
     observable: str
@@ -198,14 +228,10 @@ class Case:
     #: a sequence case: rows of a phase's [compare] table replaced for the chained flight
     #: (phase name → the replacing rows), from the sequence file's [compare.PHASE.OBSERVABLE]
     phase_compare: Mapping[str, tuple[CompareSpec, ...]] = field(default_factory=dict)
-    #: Exudyn engine settings of the case ([exudyn]: substeps, n_elements), defaults elsewhere
-    exudyn: Mapping[str, Any] = field(default_factory=dict)
-    #: reference engine step settings of the case ([reference]: h_max), defaults elsewhere
-    reference: Mapping[str, Any] = field(default_factory=dict)
-    #: the common rigid part of the end state this run starts from (set by rsmcheck.orchestration.chain)
-    start_state: Mapping[str, Any] | None = field(default=None, repr=False)
-    #: engine-specific exact states of that end state, by engine name (rsmcheck.orchestration.chain)
-    start_exact: Mapping[str, Any] | None = field(default=None, repr=False)
+    #: the Exudyn engine's settings of the case ([exudyn])
+    exudyn: ExudynSettings = ExudynSettings()
+    #: the reference engine's settings of the case ([reference], n_modes aside)
+    reference: ReferenceSettings = ReferenceSettings()
 
     def run_duration(self, short: bool) -> float:
         return self.short_duration if short else self.duration
@@ -565,8 +591,7 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         raise InputError(w, kname("duration"), f"{duration} s is not a whole number of control periods "
                          f"({solver.control_period} s)")
 
-    ref = _reference(w, "reference", raw.get("reference", {}))
-    n_modes = ref.pop("n_modes", (2,) * 6)
+    n_modes, ref = _reference(w, "reference", raw.get("reference", {}))
     exudyn = _exudyn(w, kname("exudyn"), raw.get("exudyn", {}))
 
     # a short variant that keeps the full programme is the full run cut at its duration
@@ -835,24 +860,28 @@ def _window(w: str, key: str, v: Any) -> tuple[float, float]:
     return (t0, t1)
 
 
-def _exudyn(w: str, key: str, v: Any) -> dict[str, Any]:
+def _exudyn(w: str, key: str, v: Any) -> ExudynSettings:
     """[exudyn]: the engine's step and mesh for this case, with the reason (a study)."""
-    return _engine_settings(w, key, v, {
+    t = _engine_settings(w, key, v, {
         "substeps": lambda k, x: _integer(w, k, x, 1, 4096),
         "n_elements": lambda k, x: _integer(w, k, x, 1, 64),
         "constraints": lambda k, x: _choice(w, k, x, ("index3", "index2")),
         "restart_threshold": lambda k, x: _number(w, k, x, 0.0, hi=1.0),
         "newton_atol": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
     }, needs_why=("substeps", "n_elements", "constraints", "restart_threshold", "newton_atol"))
+    return ExudynSettings(**t)
 
 
-def _reference(w: str, key: str, v: Any) -> dict[str, Any]:
-    """[reference]: modes per link, and the largest DP5 step with the reason (a study)."""
-    return _engine_settings(w, key, v, {
+def _reference(w: str, key: str, v: Any) -> tuple[tuple[int, ...], ReferenceSettings]:
+    """[reference]: modes per link, and the engine's settings (the largest DP5 step with the
+    reason, a study)."""
+    t = _engine_settings(w, key, v, {
         "n_modes": lambda k, x: _modes(w, k, x),
         "static_modes": lambda k, x: _flag(w, k, x),
         "h_max": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
     }, needs_why=("h_max",))
+    n_modes = t.pop("n_modes", (2,) * 6)
+    return n_modes, ReferenceSettings(**t)
 
 
 def _engine_settings(w: str, key: str, v: Any, known: Mapping[str, Callable[[str, Any], Any]],
@@ -861,7 +890,6 @@ def _engine_settings(w: str, key: str, v: Any, known: Mapping[str, Callable[[str
     t = _table(w, key, v, {**known, "why": lambda k, x: _text(w, k, x)})
     if any(k in t for k in needs_why) and "why" not in t:
         raise InputError(w, f"{key}.why", "missing (required with any setting: the study behind it)")
-    t.pop("why", None)
     return t
 
 

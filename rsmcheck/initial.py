@@ -8,11 +8,12 @@ arms hold the target, arm 2's joint angles and rates are solved so that its end 
 sits on (and moves with) grasp point 2: least-norm Newton on the three joint angles from
 the case's values as first guess.
 
-A case that starts from the stored end state of another (`Case.start_state`, the common
-rigid part written by `rsmcheck.orchestration.chain`) takes every pose, rate, motor angle, held point,
-orbit state and the propellant used from it instead (links undeformed: the rigid part
-is what every engine can start from; an engine's own exact state is restored on top by
-`rsmcheck.orchestration.chain`).
+A run that continues from the stored end state of another case (a `StartState`, handed to
+the engine beside the case by `rsmcheck.orchestration.chain`; the case itself only names
+its predecessor) takes every pose, rate, motor angle, held point, orbit state and the
+propellant used from the state's common rigid part instead (links undeformed: the rigid
+part is what every engine can start from; an engine's own exact state is restored on top
+by `rsmcheck.orchestration.engines.make_engine`).
 
 Orbit (docs/physics.md §5): with `[orbit] enabled`, the co-moving point O is put on a
 circular orbit of the case's altitude.  `centre_on_com` (default) shifts all positions
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -51,10 +53,26 @@ class InitialConfiguration:
     m_used: float = 0.0  # propellant already burnt [kg]
 
 
-def build_initial(case: Case, params: Params | None = None) -> InitialConfiguration:
+@dataclass(frozen=True)
+class StartState:
+    """The end state of a previous run that a run continues from (rsmcheck.orchestration.chain).
+
+    rigid: the common rigid part every engine understands (chain.RIGID_KEYS: poses, rates,
+           joint and frame angles, motor angles, held points, orbit state, propellant used,
+           COM position and velocity);
+    exact: the engine's own exact state (`Engine.export_state()`), None if there is none.
+    """
+
+    rigid: Mapping[str, Any]
+    exact: Mapping[str, Any] | None = None
+
+
+def build_initial(case: Case, params: Params | None = None, start: StartState | None = None) -> InitialConfiguration:
+    """The initial configuration of a run of `case`: from `start` (its rigid part) when the
+    run continues another, else from the case's [initial]."""
     params = params or case.params
-    if getattr(case, "start_state", None) is not None:
-        return _from_state(case, params, case.start_state)
+    if start is not None:
+        return _from_state(case, params, start.rigid)
     if not case.has_initial:
         raise InputError(case.path, "initial", f"the case starts from the end state of "
                          f"'{case.start_from}' and has no [initial] of its own: run it chained")

@@ -32,7 +32,6 @@ segment boundary in `phases`, and the events of all phases.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 from pathlib import Path
@@ -40,12 +39,14 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from rsmcheck.cases import Case, load_case
+from rsmcheck.cases import Case, load_case, sibling_case
 from rsmcheck.engine import Inputs
 from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.errors import InputError
 from rsmcheck.geometry import rot
+from rsmcheck.initial import StartState
 from rsmcheck.observables import NAMES
+from rsmcheck.runner import run
 from rsmcheck.store import EngineRun, Event, Phase, write_run, write_text
 
 FORMAT = "rsmcheck-endstate"
@@ -150,10 +151,9 @@ def load_end_state(path: str | Path, engine: str, short: bool, where: str) -> tu
 # ---------------------------------------------------------------------------------------
 # starting a case from an end state
 # ---------------------------------------------------------------------------------------
-def chained(case: Case, state: Mapping[str, Any]) -> Case:
-    """`case` starting from `state` (an `end_state`)."""
-    return dataclasses.replace(case, start_state=state["rigid"],
-                               start_exact={"state": state.get("exact")})
+def start_of(state: Mapping[str, Any]) -> StartState:
+    """The `StartState` a run continues from, out of an `end_state` (stored or in memory)."""
+    return StartState(rigid=state["rigid"], exact=state.get("exact"))
 
 
 # ---------------------------------------------------------------------------------------
@@ -172,8 +172,6 @@ def run_case(name_or_case: str | Case, engines: Sequence[str], short: bool, out_
     exists; otherwise from its own [initial] (InputError if it has none).  `options`:
     engine name → keyword options of its constructor.
     """
-    from rsmcheck.runner import run
-
     case = name_or_case if isinstance(name_or_case, Case) else load_case(name_or_case)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -185,21 +183,20 @@ def run_case(name_or_case: str | Case, engines: Sequence[str], short: bool, out_
     states: dict[str, dict] = {}
     extra: dict[str, Any] = {"short": bool(short)}
     for name in engines:
-        start_case = variant
+        start = None
         if variant.start_from is not None:
             src = end_state_path(from_dir or out, variant.start_from, short)
             use = chain if chain is not None else use_stored_start(variant, src, short)
             if use:
                 st, digest = load_end_state(src, name, short, variant.path)
-                start_case = chained(variant, st)
+                start = start_of(st)
                 extra.update(start_from=variant.start_from, start_state_file=str(src),
                              start_state_hash=digest)
             else:
                 extra.update(start_from="[initial] (stand-alone)")
-        engine = make_engine(name, start_case, **dict(options.get(name, {})))
-        runs[name] = run(engine, start_case, start_case.duration,
-                         progress(name, case.name) if progress else None)
-        states[name] = end_state(engine, start_case.params)
+        engine = make_engine(name, variant, start, **dict(options.get(name, {})))
+        runs[name] = run(engine, variant, variant.duration, progress(name, case.name) if progress else None)
+        states[name] = end_state(engine, variant.params)
     path = out / f"{case.name}.h5"
     write_run(path, runs, case_name=case.name, case_hash=case.file_hash, param_hash=case.params.digest(),
               extra_attrs=extra)
@@ -257,21 +254,16 @@ def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory 
         options: Mapping[str, Any] | None = None) -> tuple[list[tuple[float, EngineRun]], dict]:
     """One engine through the phases of `mission` (the variant to run): [(start time in the
     mission, the phase's run)], and the end state of the last phase."""
-    from rsmcheck.runner import run
-
-    from rsmcheck.cases import sibling_case
-
     pieces: list[tuple[float, EngineRun]] = []
     state = None
     offset = 0.0
     for p in mission.phases:
         ph = load_case(sibling_case(p, Path(mission.path))).variant(short)
-        start_case = ph if state is None else chained(ph, state)
-        engine = make_engine(engine_name, start_case, **dict(options or {}))
-        r = run(engine, start_case, start_case.duration, progress(engine_name, ph.name) if progress else None)
+        engine = make_engine(engine_name, ph, None if state is None else start_of(state), **dict(options or {}))
+        r = run(engine, ph, ph.duration, progress(engine_name, ph.name) if progress else None)
         pieces.append((offset, r))
-        state = end_state(engine, start_case.params)
-        offset += start_case.duration
+        state = end_state(engine, ph.params)
+        offset += ph.duration
     return pieces, state
 
 

@@ -215,8 +215,8 @@ def provenance(res: Collected, digest: str) -> dict[str, Any]:
         v = case.variant(res.short)
         settings[case.name] = {"control_period_s": v.solver.control_period, "output_period_s": v.solver.output_period,
                                "reference": {"integrator": v.solver.integrator, "rtol": v.solver.rtol,
-                                             **dict(v.reference)},
-                               "exudyn": dict(v.exudyn)}
+                                             **v.reference.given()},
+                               "exudyn": v.exudyn.given()}
     return {
         "commit": commit, "modified": dirty, "source_digest": digest,
         "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),

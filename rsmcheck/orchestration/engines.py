@@ -12,27 +12,29 @@ from __future__ import annotations
 
 from rsmcheck.cases import Case
 from rsmcheck.errors import InputError
+from rsmcheck.initial import StartState
 
 #: the simulation engines, in the order reports list them
 ENGINES = ("reference", "exudyn")
 
 
-def make_engine(name: str, case: Case, **options):
-    """The engine `name` for `case` with constructor `options` (Exudyn imported lazily: it
-    is heavy, and a machine may lack it), restored to the case's exact start state if any."""
+def make_engine(name: str, case: Case, start: StartState | None = None, **options):
+    """The engine `name` for `case` with constructor `options` (the engines are imported
+    here, lazily: Exudyn is heavy, and a machine may lack it), started from `start` when
+    the run continues another: its rigid part, then the engine's own exact state on top
+    when there is one (`import_state`, same model size)."""
     if name == "reference":
         from reference_model.engine import ReferenceEngine
 
-        engine = ReferenceEngine(case, **options)
+        engine = ReferenceEngine(case, start=start, **options)
     elif name == "exudyn":
         try:
             from exudyn_model.engine import ExudynEngine
         except ImportError as exc:
             raise InputError("--engine", "exudyn", f"the Exudyn model is not available ({exc})") from None
-        engine = ExudynEngine(case, **options)
+        engine = ExudynEngine(case, start=start, **options)
     else:
         raise InputError("--engine", name, f"unknown engine (known: {', '.join(ENGINES)}, all)")
-    exact = (case.start_exact or {}).get("state")
-    if case.start_state is not None and exact is not None:
-        engine.import_state(exact)
+    if start is not None and start.exact is not None:
+        engine.import_state(dict(start.exact))
     return engine

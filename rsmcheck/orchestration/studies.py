@@ -164,7 +164,7 @@ def rigid_equivalence(cases: Sequence[str] = FEATURE_CASES, out: Path | None = N
         rows = compare_runs(name, ref, ex, {n: RIGID_TOLERANCE for n in OBSERVABLES})
         doc["cases"][name] = {
             "duration": case.duration, "substeps": RIGID_SUBSTEPS[name],
-            "exudyn_options": rigid_options(name), "reference_case_settings": dict(case.reference),
+            "exudyn_options": rigid_options(name), "reference_case_settings": case.reference.given(),
             "h": case.solver.control_period / RIGID_SUBSTEPS[name], "wall_s": {"reference": w_ref, "exudyn": w_ex},
             "observables": {r.observable: {"error": r.error, "scale": r.scale, "reference_range": _ranges(ref)[r.observable],
                                            "worst_time": r.worst_time, "pass": r.passed} for r in rows}}

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.cases import ExudynSettings, ReferenceSettings, load_case
 from rsmcheck.errors import InputError
 
 VALID = """\
@@ -73,21 +73,23 @@ def test_valid_case_loads(tmp_path):
     assert case.path == str(path)
     assert len(case.file_hash) == 64
     assert case.run_duration(True) == 1.0 and case.run_duration(False) == 2.0
-    assert case.exudyn == {}
+    assert case.exudyn == ExudynSettings() and case.exudyn.given() == {}
 
 
 def test_exudyn_table_sets_the_engine_discretisation(tmp_path):
     text = VALID + '[exudyn]\nsubsteps = 32\nn_elements = 4\nwhy = "the step study"\n'
     case = load_case(write(tmp_path, text, "good"))
-    assert case.exudyn == {"substeps": 32, "n_elements": 4}
-    assert case.variant(True).exudyn == {"substeps": 32, "n_elements": 4}
+    assert case.exudyn.given() == {"substeps": 32, "n_elements": 4}
+    assert case.exudyn.why == "the step study"
+    assert case.variant(True).exudyn.given() == {"substeps": 32, "n_elements": 4}
 
 
 def test_exudyn_table_sets_the_integrator(tmp_path):
     text = (VALID + '[exudyn]\nconstraints = "index2"\nrestart_threshold = 0.0\nnewton_atol = 1e-3\n'
             'why = "the ZOH study"\n')
     case = load_case(write(tmp_path, text, "good"))
-    assert case.exudyn == {"constraints": "index2", "restart_threshold": 0.0, "newton_atol": 1e-3}
+    assert case.exudyn.given() == {"constraints": "index2", "restart_threshold": 0.0, "newton_atol": 1e-3}
+    assert (case.exudyn.constraints, case.exudyn.substeps) == ("index2", None)
 
 
 def test_growth_metric_takes_a_window(tmp_path):
@@ -100,8 +102,8 @@ def test_growth_metric_takes_a_window(tmp_path):
 def test_reference_table_sets_the_largest_step(tmp_path):
     text = edit(VALID, "n_modes = 2", 'n_modes = 2\nh_max = 2e-4\nwhy = "the ripple study"')
     case = load_case(write(tmp_path, text, "good"))
-    assert case.reference == {"h_max": 2e-4} and case.n_modes == (2,) * 6
-    assert case.variant(True).reference == {"h_max": 2e-4}
+    assert case.reference == ReferenceSettings(h_max=2e-4, why="the ripple study") and case.n_modes == (2,) * 6
+    assert case.variant(True).reference.given() == {"h_max": 2e-4}
 
 
 GROWTH = '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nmetric = "growth"\n'

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rsmcheck.cases import load_case
-from rsmcheck.orchestration.chain import chained, end_state_path, load_end_state, run_case
+from rsmcheck.orchestration.chain import end_state_path, load_end_state, run_case, start_of
 from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.errors import InputError
 from rsmcheck.initial import build_initial
@@ -123,8 +123,9 @@ def test_chained_run_starts_where_the_previous_ended(chain_dir):
 def test_rigid_part_is_what_other_engines_start_from(chain_dir):
     d, out = chain_dir
     st, _ = load_end_state(end_state_path(out, "a", False), "reference", False, "x")
-    case = chained(load_case(d / "b.toml"), st)
-    init = build_initial(case)
+    case = load_case(d / "b.toml")
+    start = start_of(st)
+    init = build_initial(case, start=start)
     rigid = st["rigid"]
     # undeformed links placed by the frame angles; each spring keeps its twist θ_m − ψ_J
     assert init.joint_angles == pytest.approx(rigid["joint_frame_angles"], abs=0)
@@ -135,7 +136,7 @@ def test_rigid_part_is_what_other_engines_start_from(chain_dir):
     assert init.m_used == pytest.approx(rigid["m_used"])
     assert np.linalg.norm(init.orbit_r) == pytest.approx(6378137.0 + 700e3)
     # the exact reference restore and the rigid start agree on the rigid coordinates
-    engine = make_engine("reference", case)
+    engine = make_engine("reference", case, start)
     s = engine.sensors()
     assert s.joint_frame_angles == pytest.approx(init.joint_angles, abs=1e-12)
     assert s.joint_angles == pytest.approx(rigid["joint_angles"], abs=1e-12)  # the bent links restored

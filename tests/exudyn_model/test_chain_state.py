@@ -29,7 +29,7 @@ def _continued(case_name: str, duration: float, edit=None):
     state = chain.end_state(first, case.params)
     if edit:
         edit(state)
-    second = make_engine("exudyn", chain.chained(case, state))
+    second = make_engine("exudyn", case, chain.start_of(state))
     return first, second
 
 
