@@ -31,7 +31,7 @@ from rsmcheck.cases import ArmCommand, ControllerSpec, Segment
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.geometry import arm_jacobian, arm_pins, rot
 from rsmcheck.params import Params
-from rsmcheck.trajectories import Quintic
+from rsmcheck.trajectories import Quintic, quintic
 
 Controller = Callable[[Sensors], Inputs]
 
@@ -197,8 +197,6 @@ class Approach(ArmReference):
         return m.target_B[:2] + rot(m.target_B[2]) @ self.point_T
 
     def __call__(self, t, m):
-        from rsmcheck.trajectories import quintic
-
         s, _, _ = quintic(t, self.t0, self.duration)
         p = self.start[:2] + s * (self.point_B(m) - self.start[:2])
         return np.array([p[0], p[1], self.phi(t)[0]])

@@ -32,7 +32,7 @@ import numpy as np
 from rsmcheck.cases import Case
 from rsmcheck.controllers import ProgrammeController, make_controller
 from rsmcheck.engine import Engine, Inputs, Sensors
-from rsmcheck.errors import SimulationDiverged
+from rsmcheck.errors import InputError, SimulationDiverged
 from rsmcheck.geometry import rot
 from rsmcheck.observables import NAMES
 from rsmcheck.store import EngineRun, Event, Phase
@@ -88,8 +88,6 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
     durations, programme, events, solver and comparison, never in the initial state).
     """
     if case.phases:
-        from rsmcheck.errors import InputError
-
         raise InputError(case.path, "phases",
                          "a sequence case runs through rsmcheck.orchestration.chain.run_case")
     if duration is None:
