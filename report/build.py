@@ -31,11 +31,13 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import jinja2
+import plotly.offline
 
 from rsmcheck.cases import Case, list_cases, load_case
-from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.errors import InputError
 from rsmcheck.observables import BY_NAME
+from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
+from rsmcheck.orchestration.gate import golden_path, read_golden
 from rsmcheck.report import paper
 from rsmcheck.report.plots import comparison_figure, run_marks
 from rsmcheck.store import EngineRun, read_run, write_text
@@ -254,8 +256,6 @@ def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict]
 
 def case_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict], gates: dict) -> list[dict]:
     """One section per stand-alone case: its checks, events, golden verdicts and plots."""
-    from rsmcheck.orchestration.gate import golden_path, read_golden
-
     out = []
     for case in st.cases:
         if case.phases:
@@ -299,8 +299,6 @@ def _environment() -> jinja2.Environment:
 
 def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, data_dir: Path = DATA_DIR) -> Path:
     """Write the page for the results stored in `folder` (and the studies in `data_dir`) to `out`."""
-    import plotly.offline
-
     st = load_stored(folder, case_names)
     page = Page()
     v = st.verdict

@@ -15,8 +15,9 @@ from typing import Callable
 
 import numpy as np
 
-from rsmcheck.orchestration.collect import phase_runs
 from rsmcheck.observables import BY_NAME
+from rsmcheck.orchestration.collect import phase_runs
+from rsmcheck.params import Params
 from rsmcheck.report.drawing import snapshot_figure
 from rsmcheck.report.plots import comparison_figure, run_marks
 from rsmcheck.store import EngineRun
@@ -149,8 +150,6 @@ def _instants(fig: PaperFigure, run: EngineRun) -> list[tuple[str, float]]:
 
 def figures(page, st) -> list[dict]:
     """The figure entries of the page: number, captions, the figure's div."""
-    from rsmcheck.params import Params
-
     out = []
     for fig in FIGURES:
         src = _source(st, fig.phase)

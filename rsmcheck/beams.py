@@ -14,14 +14,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import brentq
 
 
 def beta_l(basis: str, j: int) -> float:
     """j-th (1-based) root β_j L of the frequency equation of `basis` ("PP" or "PF")."""
     if basis == "PP":
         return j * math.pi
-    from scipy.optimize import brentq
-
     return brentq(lambda b: math.tan(b) - math.tanh(b), (j + 0.25) * math.pi - 0.3,
                   (j + 0.25) * math.pi + 1e-9, xtol=1e-15)
 

@@ -24,6 +24,7 @@ velocity points along −x_B, so that a burn along +x_B starts aligned (Sect. 5.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -177,8 +178,6 @@ def orbit_start(case: Case, params: Params, theta_B: float) -> tuple[np.ndarray,
 def place_on_orbit(case: Case, params: Params, init: InitialConfiguration, com: np.ndarray,
                    vcom: np.ndarray) -> InitialConfiguration:
     """Put O on the case's circular orbit; with centre_on_com, O := system COM first."""
-    import dataclasses
-
     shift = np.zeros(2)
     vshift = np.zeros(2)
     if case.orbit_spec.centre_on_com:

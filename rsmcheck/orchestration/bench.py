@@ -30,6 +30,10 @@ import sys
 import time
 from typing import Any, Sequence
 
+from rsmcheck.cases import list_cases, load_case
+from rsmcheck.params import Params
+from rsmcheck.store import dumps_json, git_commit, output_file, write_json
+
 VARIANTS = ("short", "full")
 
 _CHILD = r"""
@@ -38,13 +42,13 @@ from rsmcheck.cases import load_case
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.runner import run
+from rsmcheck.store import read_run
 name, engine_name, short = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
 case = load_case(name)
 first = load_case(case.variant(short).phases[0]) if case.phases else case
 run(make_engine(engine_name, first), first, min(0.01, first.run_duration(short)))  # warm-up
 t0 = time.perf_counter()
 if case.phases:
-    from rsmcheck.store import read_run
     with tempfile.TemporaryDirectory() as out:
         result = read_run(run_case(case, [engine_name], short, out_dir=out))[0][engine_name]
 else:
@@ -77,7 +81,6 @@ def rhs_timings(n: int = 2000) -> dict[str, Any]:
     Pinocchio ABA from Python (module doc)."""
     # the engine packages are heavy optional imports (numba, pinocchio): imported here, when used
     from reference_model.stepping import rhs_timing
-    from rsmcheck.cases import load_case
 
     case = load_case("closed_squeeze")
     out: dict[str, Any] = {}
@@ -87,8 +90,7 @@ def rhs_timings(n: int = 2000) -> dict[str, Any]:
         out[f"{key}_compiled"] = timing["compiled_us"]
         out[f"{key}_states"] = timing["states"]
     try:
-        from pinocchio_check.model import aba_timing
-        from rsmcheck.params import Params
+        from pinocchio_check.model import aba_timing  # optional: pinocchio may be missing
 
         timing = aba_timing(Params(), n)
         out["pinocchio_aba"] = timing["call_us"]
@@ -145,9 +147,6 @@ def table(doc: dict) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from rsmcheck.cases import list_cases, load_case
-    from rsmcheck.store import dumps_json, git_commit, output_file, write_json
-
     parser = argparse.ArgumentParser(prog="rsmcheck bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout instead of the table")
     parser.add_argument("--variant", default="short", choices=[*VARIANTS, "both"],

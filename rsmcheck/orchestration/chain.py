@@ -39,13 +39,13 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from rsmcheck.cases import Case, load_case, sibling_case
+from rsmcheck.cases import Case, list_cases, load_case, sibling_case
 from rsmcheck.engine import Inputs
-from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.errors import InputError
 from rsmcheck.geometry import rot
 from rsmcheck.initial import StartState
 from rsmcheck.observables import NAMES
+from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.runner import run
 from rsmcheck.store import EngineRun, Event, Phase, write_run, write_text
 
@@ -209,8 +209,6 @@ def starts_short_sequence(name: str) -> bool:
     although its full sequence does not: the short predecessor does not end where this phase
     begins (p1's short variant does not bring the target into arm 2's reach), so with --short
     this phase runs from its own [initial], as in the short mission."""
-    from rsmcheck.cases import list_cases
-
     for path in list_cases():
         seq = load_case(path)
         if seq.phases and seq.variant(True).phases[:1] == (name,) and seq.phases[0] != name:

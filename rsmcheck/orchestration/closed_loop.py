@@ -25,8 +25,9 @@ import argparse
 import math
 
 import numpy as np
+from scipy.linalg import expm
 
-from rsmcheck.cases import at_rest, without_orbit
+from rsmcheck.cases import at_rest, load_case, without_orbit
 from rsmcheck.controllers import ArmModel, measure
 
 N_INPUTS = 7  # τ_m1..6, τ_B
@@ -61,8 +62,6 @@ def controller_gains(case, joint_angles) -> tuple[np.ndarray, np.ndarray, float]
 
 def closed_loop_exponents(A, B, C, ky, kr, alpha: float, dt: float) -> np.ndarray:
     """s = ln μ / Δt of the sampled loop (module docstring)."""
-    from scipy.linalg import expm
-
     n = A.shape[0]
     aug = expm(np.block([[A, B], [np.zeros((N_INPUTS, n + N_INPUTS))]]) * dt)
     phi, gam = aug[:n, :n], aug[:n, n:]
@@ -110,8 +109,6 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
 
 
 def main(argv=None) -> int:
-    from rsmcheck.cases import load_case
-
     p = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.closed_loop",
                                 description=__doc__.split("\n")[0])
     p.add_argument("case", nargs="?", default="p1_rigid_gains")

@@ -39,6 +39,8 @@ import numpy as np
 from rsmcheck.cases import Case, list_cases, load_case, sibling_case
 from rsmcheck.orchestration.compare import case_rows, check_runs
 from rsmcheck.orchestration.engines import ENGINES
+from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
+from rsmcheck.orchestration.modes import modes_report
 from rsmcheck.orchestration.runs import Job, get_runs, read_stored, source_digest
 from rsmcheck.store import EngineRun, Event, Phase, git_commit, package_versions, write_json
 
@@ -62,15 +64,13 @@ def run_dir(folder: Path) -> Path:
 # ---------------------------------------------------------------------------------------
 def pinocchio_rows() -> dict[str, Any]:
     """The rows of `rsmcheck pinocchio --json` (rigid modes 0 and 2, both arms open)."""
-    from pinocchio_check.compare import run_checks
+    from pinocchio_check.compare import run_checks  # the engine is imported lazily: Pinocchio is optional
 
     return {"checks": [r for n in (0, 2) for r in run_checks(n_modes=n, open_arms=(1, 2))]}
 
 
 def modes_rows() -> dict[str, Any]:
     """The rows of `rsmcheck modes --json`."""
-    from rsmcheck.orchestration.modes import modes_report
-
     return modes_report()
 
 
@@ -193,8 +193,6 @@ def mission_checks(mission: Case, short: bool, runs: dict[str, EngineRun]) -> li
 
 def gate_rows(case: Case, runs: dict[str, EngineRun]) -> list[dict[str, Any]]:
     """Each engine's short run of `case` against its golden (rsmcheck.orchestration.gate)."""
-    from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
-
     rows = []
     for engine, run in runs.items():
         path = golden_path(case.name, engine)

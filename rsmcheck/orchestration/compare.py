@@ -46,7 +46,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from rsmcheck.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
+from rsmcheck.errors import InputError
 from rsmcheck.observables import NAMES
+from rsmcheck.orchestration.runs import get_runs
 from rsmcheck.store import EngineRun
 from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
 
@@ -284,8 +286,6 @@ def not_checked(case, short: bool) -> str:
     if not variant.compare:
         return "no [compare] table in the case file: nothing is compared"
     if not variant.has_initial:
-        from rsmcheck.errors import InputError
-
         raise InputError(variant.path, "initial", f"the case only chains from '{variant.start_from}': "
                          "a check needs a stand-alone [initial] (both engines from the same state)")
     return ""
@@ -315,8 +315,6 @@ def check_cases(cases: Sequence[Any], short: bool, options: Mapping[str, Mapping
     (stored in and reused from `run_dir` when given, else made in memory), each case's
     rows by `case_rows`.  Every case is looked at before anything runs (`not_checked`); a
     case without rows is returned with `skipped` set and nothing run: it is not a pass."""
-    from rsmcheck.orchestration.runs import get_runs
-
     skipped = {c.name: not_checked(c, short) for c in cases}
     todo = [c for c in cases if not skipped[c.name]]
     got = get_runs(todo, ("reference", "exudyn"), short, run_dir, rerun=rerun, options=options,

@@ -25,8 +25,11 @@ import math
 from typing import Any, Sequence
 
 import numpy as np
+from scipy.linalg import eigh
 
-from rsmcheck.cases import at_rest, undamped, without_orbit
+from rsmcheck.beams import analytic_frequencies
+from rsmcheck.cases import at_rest, load_case, undamped, without_orbit
+from rsmcheck.params import TABLE2_HZ, Params
 
 #: (name, case, what it is) of the configurations `rsmcheck modes` linearises
 CONFIGURATIONS = (
@@ -40,8 +43,6 @@ N_ARM_MODES = 6
 
 def reference_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
     # the engine packages are heavy optional imports: imported here, when used
-    from scipy.linalg import eigh
-
     from reference_model.beam_modes import PF, PP, modal_basis
 
     link = params.link
@@ -53,8 +54,6 @@ def reference_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
 def link_rows(params=None, n_elements: int | None = None) -> list[dict[str, Any]]:
     # the engine packages are heavy optional imports: imported here, when used
     from exudyn_model import links
-    from rsmcheck.beams import analytic_frequencies
-    from rsmcheck.params import TABLE2_HZ, Params
 
     params = params or Params()
     n_el = n_elements or links.N_ELEMENTS_DEFAULT
@@ -81,7 +80,6 @@ def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n:
     from exudyn_model import links
     from exudyn_model import modes as exudyn_modes
     from reference_model import modes as reference_modes
-    from rsmcheck.cases import load_case
 
     rows = []
     for label, case_name, what in configurations:

@@ -34,7 +34,9 @@ from typing import Any, Callable, Mapping, Sequence
 
 from rsmcheck.cases import Case, load_case, sibling_case
 from rsmcheck.errors import InputError
+from rsmcheck.orchestration.chain import run_mission
 from rsmcheck.orchestration.engines import ENGINES, make_engine
+from rsmcheck.runner import run
 from rsmcheck.store import EngineRun, read_run, write_run
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -162,8 +164,6 @@ def run_jobs(jobs: Sequence[Job], progress: Progress | None = None, workers: int
 def run_engine(engine: str, case: Case, options: Mapping[str, Any] | None = None) -> EngineRun:
     """Run one engine on `case` (the variant to run) for its duration.  A bad engine option
     value becomes an InputError naming the options (exit 2 on the command line)."""
-    from rsmcheck.runner import run
-
     options = dict(options or {})
     try:
         return run(make_engine(engine, case, **options), case, case.duration)
@@ -186,8 +186,6 @@ def run_sequence(engine: str, case: Case, short: bool, workdir: str,
                  options: Mapping[str, Any] | None = None) -> SequenceRun:
     """Fly `case` (a sequence, the base case) in `engine`, its phases chained
     (rsmcheck.orchestration.chain.run_mission, into `workdir`)."""
-    from rsmcheck.orchestration.chain import run_mission
-
     out = Path(workdir) / f"{case.name}.{engine}"
     phases: dict[str, dict[str, EngineRun]] = {}
     runs, _ = read_run(run_mission(case.variant(short), [engine], short, out,

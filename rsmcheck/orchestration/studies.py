@@ -31,15 +31,19 @@ import argparse
 import math
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
-from rsmcheck.orchestration.compare import SCALE_FLOORS, compare_runs
-from rsmcheck.orchestration.engines import make_engine
+from rsmcheck.cases import OrbitSpec, load_case
 from rsmcheck.errors import exit_code
 from rsmcheck.observables import NAMES
+from rsmcheck.orchestration.compare import SCALE_FLOORS, check_runs, compare_runs
+from rsmcheck.orchestration.engines import make_engine
+from rsmcheck.runner import run
+from rsmcheck.store import read_run, write_json
 
 DATA_DIR = Path(__file__).resolve().parents[2] / "docs" / "data"
 FEATURE_CASES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", "capture", "release",
@@ -50,8 +54,6 @@ RIGID_ZERO = ("link_deflection",)
 
 
 def _run(engine: str, case, duration: float, **options):
-    from rsmcheck.runner import run
-
     t0 = time.monotonic()
     r = run(make_engine(engine, case, **options), case, duration)
     return r, time.monotonic() - t0
@@ -67,8 +69,6 @@ def _errors(name: str, ref, other, names=OBSERVABLES) -> dict[str, dict[str, flo
 
 
 def _write(path: Path | None, doc: dict) -> None:
-    from rsmcheck.store import write_json
-
     if path is None:
         return
     write_json(path, doc)  # strict JSON, atomically
@@ -86,8 +86,6 @@ def rigid_step_study(cases: Sequence[str] = FEATURE_CASES, substeps: Sequence[in
                      log=None, reference_rtol: float = REFERENCE_RTOL, check_rtol: float = CHECK_RTOL,
                      exudyn_options: dict | None = None) -> dict[str, Any]:
     """Relative differences (compare_runs) per case, observable and Exudyn step."""
-    from rsmcheck.cases import load_case
-
     exudyn_options = dict(exudyn_options or {})
     doc: dict[str, Any] = {"study": "rigid equivalence vs generalized-alpha step", "short": short,
                            "reference_rtol": reference_rtol, "check_rtol": check_rtol,
@@ -152,8 +150,6 @@ def rigid_options(case: str) -> dict:
 def rigid_equivalence(cases: Sequence[str] = FEATURE_CASES, out: Path | None = None, log=None) -> dict[str, Any]:
     """Every observable of every feature case (short) in the rigid-equivalence configuration:
     relative error, scale (max of reference range and floor), reference range."""
-    from rsmcheck.cases import load_case
-
     doc: dict[str, Any] = {"study": "rigid equivalence", "tolerance": RIGID_TOLERANCE,
                            "reference_options": RIGID_REFERENCE, "exudyn_options": RIGID_EXUDYN,
                            "substeps": RIGID_SUBSTEPS, "scale_floors": SCALE_FLOORS, "cases": {}}
@@ -180,8 +176,7 @@ def convergence_study(case_name: str = "flex_arm_step", modes: Sequence[int] = (
                       duration: float | None = None, out: Path | None = None, log=None,
                       observables: Sequence[str] = OBSERVABLES) -> dict[str, Any]:
     """Relative differences per observable for every (reference modes, Exudyn elements)."""
-    from exudyn_model.engine import SUBSTEPS_DEFAULT
-    from rsmcheck.cases import load_case
+    from exudyn_model.engine import SUBSTEPS_DEFAULT  # engines are imported lazily: Exudyn is heavy and optional
 
     case = load_case(case_name).variant(short)
     T = duration or case.duration
@@ -214,11 +209,6 @@ def refinement_study(case_name: str, modes: Sequence[int], exudyn: Sequence[tupl
     """The case's `[compare]` rows (error, tolerance) for every (reference modes, Exudyn
     (substeps, EA/EI)): the EA/EI of the Exudyn links replaces the case's
     `params.link.axial_to_bending` (the reference is axially rigid and ignores it)."""
-    from dataclasses import replace
-
-    from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.compare import check_runs
-
     case = load_case(case_name).variant(short)
     doc: dict[str, Any] = {"study": "refinement: the case's [compare] rows, reference modes x Exudyn (substeps, EA/EI)",
                            "case": case_name, "short": short, "duration": case.duration,
@@ -259,10 +249,6 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
     with it the base tracks the retrograde direction, n = 1.06e-3 rad/s).  `with_runs`: a
     folder of run files of the short variants as they are (`rsmcheck check --short --out`),
     whose reference runs are used instead of running the phases with the orbit again."""
-    from dataclasses import replace
-
-    from rsmcheck.cases import OrbitSpec, load_case
-
     doc: dict[str, Any] = {"study": "orbit: max_t |with orbit − without| of a phase's short variant, reference",
                            "observables": list(ORBIT_OBSERVABLES), "cases": {}}
     for name in cases:
@@ -272,8 +258,6 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
                        segments=tuple(replace(sg, base="hold" if sg.base == "retrograde" else sg.base)
                                       for sg in case.segments))
         if with_runs is not None:
-            from rsmcheck.store import read_run
-
             with_orbit, w1 = read_run(Path(with_runs) / f"{name}.h5")[0]["reference"], None
         else:
             with_orbit, w1 = _run("reference", case, case.duration)
