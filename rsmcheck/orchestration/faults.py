@@ -31,6 +31,13 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from rsmcheck.cases import load_case
+from rsmcheck.orchestration.compare import check_runs
+from rsmcheck.orchestration.gate import at_samples, compare_with_golden, golden_path, read_golden
+from rsmcheck.orchestration.runs import Job, expected_wall, run_engine, run_jobs
+from rsmcheck.runner import run
+from rsmcheck.store import git_commit, write_json
+
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "data" / "faults.json"
 #: the cases every fault is tried on: fast short variants that together exercise every
@@ -182,8 +189,6 @@ def main(argv=None) -> int:
     tree = make_copy(ROOT, Path(args.tree))
     print(f"fault injection: {len(faults)} faults on a copy in {tree}; cases {', '.join(CASES)}", flush=True)
     results = [run_fault(f, tree, lambda s: print(s, flush=True)) for f in faults]
-    from rsmcheck.store import git_commit, write_json
-
     doc = {"cases": list(CASES), "pinocchio_states": PINOCCHIO_STATES, "commit": git_commit()[0],
            "faults": results}
     out = write_json(Path(args.out), doc)
@@ -207,23 +212,24 @@ def _by_name(name: str) -> Fault:
 # ---------------------------------------------------------------------------------------
 def probe(fault: Fault) -> dict:
     """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
-    from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.compare import check_runs
-    from rsmcheck.orchestration.gate import at_samples, compare_with_golden, golden_path, read_golden, run_jobs
-
     engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
     if "reference" in engines:  # compile the core once, in this process, before the workers
-        from reference_model.engine import ReferenceEngine
-        from rsmcheck.runner import run
+        from reference_model.engine import ReferenceEngine  # engines are imported lazily: heavy, optional
 
         c = load_case("p1_rigid_gains").variant(True)
         run(ReferenceEngine(c), c, 0.002)
     variants = [load_case(n).variant(True) for n in CASES]
-    runs = run_jobs([(v, e, False) for v in variants for e in engines], None)
+    jobs = [Job(f"{v.name} / {e}", run_engine, (e, v), expected_wall(v, e), (v.name, e))
+            for v in variants for e in engines]
+    done = run_jobs(jobs)  # the one pool; a failed job raises once all have ended
+    for job in jobs:
+        if done[job].error is not None:
+            raise done[job].error
+    runs = {job.key: done[job].value for job in jobs}
     out = {"crosscheck": [], "pinocchio": [], "gate": []}
     for v in variants:
         goldens = {e: read_golden(golden_path(v.name, e), e) for e in ("reference", "exudyn")}
-        new = {e: runs[(v.name, e, False)] for e in engines}
+        new = {e: runs[(v.name, e)] for e in engines}
         for e, r in new.items():
             g = compare_with_golden(v, r, goldens[e])
             if not g.unchanged:
@@ -242,7 +248,7 @@ def probe(fault: Fault) -> dict:
         failed = [c for c in check_runs(v, pair["reference"], pair["exudyn"]) if not c.passed]
         out["crosscheck"] += [f"{v.name}: {c.observable} {c.error:.2e} > {c.tolerance:.1e}" for c in failed]
     if fault.layer in ("reference", "shared", "none"):
-        from pinocchio_check.compare import run_checks
+        from pinocchio_check.compare import run_checks  # engines are imported lazily: Pinocchio is optional
 
         for n_modes in (0, 2):
             rows = run_checks(n_states=PINOCCHIO_STATES, first_seed=0, n_modes=n_modes, open_arms=(1, 2))

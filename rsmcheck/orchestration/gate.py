@@ -25,16 +25,21 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import hashlib
+import json
 import platform
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
 
+from rsmcheck.cases import list_cases, load_case
 from rsmcheck.errors import InputError
 from rsmcheck.observables import NAMES
-from rsmcheck.orchestration.runs import GOLDEN_DIR, golden_path
+from rsmcheck.orchestration.runs import GOLDEN_DIR, Job, expected_wall, get_runs, golden_path, run_engine, run_jobs
+from rsmcheck.params import Params
 from rsmcheck.store import EngineRun, git_commit, read_run, write_run, write_text
 
 CHANGELOG = "CHANGELOG.md"
@@ -114,10 +119,6 @@ PROSE_KEYS = frozenset({"why", "description", "gains"})
 
 def case_inputs_hash(case) -> str:
     """SHA-256 of the case file's parsed content without its prose (`PROSE_KEYS`)."""
-    import hashlib
-    import json
-    import tomllib
-
     def strip(x):
         if isinstance(x, dict):
             return {k: strip(v) for k, v in x.items() if k not in PROSE_KEYS}
@@ -304,8 +305,6 @@ def compare_with_golden(case, run: EngineRun, golden: Golden) -> GateResult:
 # ---------------------------------------------------------------------------------------
 def perturbed_case(case):
     """`case` with every mass of its parameters scaled by (1 + PERTURBATION)."""
-    from rsmcheck.params import Params
-
     values = case.params.to_dict()
     for section in ("base", "target", "link"):
         values[section]["mass"] *= 1.0 + PERTURBATION
@@ -348,33 +347,13 @@ def append_changelog(root: Path, reason: str, entries: Iterable[tuple[str, str, 
 # ---------------------------------------------------------------------------------------
 def gated_cases() -> list:
     """The cases with goldens: every stand-alone case (sequences are gated phase by phase)."""
-    from rsmcheck.cases import list_cases, load_case
-
     return [c for c in (load_case(p) for p in list_cases()) if not c.phases and c.variant(True).has_initial]
-
-
-def run_jobs(jobs: list[tuple[Any, str, bool]], progress=None, workers: int = 2) -> dict[tuple[str, str, bool], EngineRun]:
-    """Run (short variant, engine, perturbed) jobs on the one pool (`runs.run_jobs`); results
-    by (case name, engine, perturbed).  A failed job raises its error once all have ended."""
-    from rsmcheck.orchestration.runs import Job, expected_wall, run_engine
-    from rsmcheck.orchestration.runs import run_jobs as pool
-
-    todo = [Job(f"{case.name} / {engine}" + (" (perturbed)" if pert else ""), run_engine,
-                (engine, perturbed_case(case) if pert else case), expected_wall(case, engine),
-                (case.name, engine, pert)) for case, engine, pert in jobs]
-    done = pool(todo, progress, workers)
-    for job in todo:
-        if done[job].error is not None:
-            raise done[job].error
-    return {job.key: done[job].value for job in todo}
 
 
 def gate(cases: list, engines: list[str], root: Path = GOLDEN_DIR, progress=None) -> list[GateResult]:
     """Run the short variant of every case in every engine (fresh runs, nothing stored:
     `runs.get_runs` without a folder) and compare with its golden.  Every golden is read
     (and a bad one reported, InputError) before anything runs."""
-    from rsmcheck.orchestration.runs import get_runs
-
     variants = [c.variant(True) for c in cases]
     goldens = {(v.name, e): read_golden(golden_path(v.name, e, root), e) for v in variants for e in engines}
     got = get_runs(cases, engines, True, None, progress=progress)
@@ -389,7 +368,14 @@ def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR,
     if not reason or not reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason (what changed and why the new results are right)")
     variants = [c.variant(True) for c in cases]
-    runs = run_jobs([(v, e, p) for v in variants for e in engines for p in (False, True)], progress)
+    jobs = [Job(f"{v.name} / {e}" + (" (perturbed)" if p else ""), run_engine,
+                (e, perturbed_case(v) if p else v), expected_wall(v, e), (v.name, e, p))
+            for v in variants for e in engines for p in (False, True)]
+    done = run_jobs(jobs, progress)  # the one pool; a failed job raises once all have ended
+    for job in jobs:
+        if done[job].error is not None:
+            raise done[job].error
+    runs = {job.key: done[job].value for job in jobs}
     entries = []
     for v in variants:
         for e in engines:
