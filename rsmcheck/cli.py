@@ -10,12 +10,18 @@ output that goes away (`rsmcheck cases | head -1`) ends the command quietly
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
-from rsmcheck.orchestration.engines import ENGINES
+from rsmcheck.cases import list_cases, load_case
 from rsmcheck.errors import InputError, exit_code, flush_stdout
+from rsmcheck.orchestration import bench, compare, gate
+from rsmcheck.orchestration.chain import run_case
+from rsmcheck.orchestration.engines import ENGINES
+from rsmcheck.runner import terminal_progress
+from rsmcheck.store import dumps_json, output_dir, output_file
 
 
 class _Parser(argparse.ArgumentParser):
@@ -27,8 +33,6 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _cmd_cases(args: argparse.Namespace) -> int:
-    from rsmcheck.cases import list_cases, load_case
-
     for path in list_cases():
         case = load_case(path)
         short = f", --short {case.short_duration:g} s" if case.short_duration != case.duration else ""
@@ -41,11 +45,6 @@ def _engine_names(choice: str) -> list[str]:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.chain import run_case
-    from rsmcheck.runner import terminal_progress
-    from rsmcheck.store import output_dir
-
     out = output_dir(args.out, "--out")  # before anything runs: an existing file there is a bad input
     cases = [load_case(name) for name in args.case]  # validate every case before running any
     out.mkdir(parents=True, exist_ok=True)
@@ -58,8 +57,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    # lazy: collect and the report read rsmcheck.orchestration.modes, whose scipy (with
+    # plotly, jinja2) takes `rsmcheck --help` from 0.4 s to 1.0 s when imported at the top
     from rsmcheck.orchestration.collect import collect
-    from rsmcheck.store import output_file
+    from rsmcheck.report.build import render
 
     out = output_file(args.out, "--out")  # before anything runs
     folder = out.parent
@@ -69,8 +70,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
         failures = list(res.failures)
     else:
         failures = []
-    from rsmcheck.report.build import render
-
     path = render(folder, out, args.cases or None)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)"
           + (f"; did not run: {', '.join(failures)}" if failures else ""))
@@ -79,8 +78,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 def _engine_options(pairs: Sequence[str] | None, engine: str) -> dict:
     """KEY=VALUE options of one engine's constructor (ints, floats, true/false, text)."""
-    import inspect
-
+    # engines are imported lazily: Exudyn is heavy and optional
     if engine == "reference":
         from reference_model.engine import ReferenceEngine as cls
     else:
@@ -113,17 +111,13 @@ def _fmt(x: float) -> str:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.compare import check_cases
-    from rsmcheck.store import dumps_json, output_dir
-
     out = output_dir(args.out, "--out") if args.out else None
     cases = [load_case(name) for name in args.case]  # validate every case before running any
     options = {"reference": _engine_options(args.reference, "reference"),
                "exudyn": _engine_options(args.exudyn, "exudyn")}
     # the runs come from rsmcheck.orchestration.runs.get_runs, as the report's do: stored in
     # and reused from --out when given, else made in memory; the rows by compare.case_rows
-    results = check_cases(cases, args.short, options, out, rerun=args.rerun, workers=0 if args.serial else 2,
+    results = compare.check_cases(cases, args.short, options, out, rerun=args.rerun, workers=0 if args.serial else 2,
                           progress=_progress if not args.json and sys.stderr.isatty() else None)
     for res in results:
         if res.error is not None:  # reported as before: the cases ahead of it are shown
@@ -162,8 +156,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
+    # lazy: at the top its scipy would add ≈ 0.5 s to every command (`rsmcheck --help` takes 0.4 s)
     from rsmcheck.orchestration.modes import arm_rows, link_rows
-    from rsmcheck.store import dumps_json
 
     links = link_rows(n_elements=args.elements)
     arms = arm_rows(n_modes=args.modes, n_elements=args.elements)
@@ -185,23 +179,18 @@ def _cmd_modes(args: argparse.Namespace) -> int:
 
 
 def _cmd_pinocchio(args: argparse.Namespace) -> int:
-    from pinocchio_check.compare import main
+    from pinocchio_check.compare import main  # engines are imported lazily: Pinocchio is optional
 
     return main(args.rest)
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from rsmcheck.orchestration.bench import main
-
-    return main(args.rest)
+    return bench.main(args.rest)
 
 
 def _gate_cases(names: Sequence[str] | None) -> list:
-    from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.gate import gated_cases
-
     if not names or list(names) == ["all"]:
-        return gated_cases()
+        return gate.gated_cases()
     cases = [load_case(n) for n in names]  # validate every case before running any
     for c in cases:
         if c.phases or not c.variant(True).has_initial:
@@ -216,12 +205,9 @@ def _progress(text: str) -> None:
 
 
 def _cmd_gate(args: argparse.Namespace) -> int:
-    from rsmcheck.orchestration.gate import gate, tolerance_table
-    from rsmcheck.store import dumps_json
-
     cases = _gate_cases(args.case)
     if args.tolerances:
-        rows = tolerance_table(cases, _engine_names(args.engine), Path(args.goldens))
+        rows = gate.tolerance_table(cases, _engine_names(args.engine), Path(args.goldens))
         if args.json:
             print(dumps_json({"tolerances": rows}))
             return 0
@@ -230,7 +216,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
             print(f"{r['case']:20s} {r['engine']:9s} {r['observable']:20s} {r['tolerance']:10.2e} "
                   f"{r['perturbation_change']:10.2e} {r['largest_value']:10.2e}")
         return 0
-    results = gate(cases, _engine_names(args.engine), Path(args.goldens), None if args.json else _progress)
+    results = gate.gate(cases, _engine_names(args.engine), Path(args.goldens), None if args.json else _progress)
     if args.json:
         print(dumps_json({"gate": [r.as_dict() for r in results]}))
     else:
@@ -252,17 +238,14 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 
 def _cmd_bless(args: argparse.Namespace) -> int:
-    from rsmcheck.orchestration.gate import CHANGELOG, bless
-    from rsmcheck.store import output_dir
-
     if not args.reason or not args.reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason: what changed and why the new results are right")
     output_dir(args.goldens, "--goldens")
     cases = _gate_cases(args.case)
-    entries = bless(cases, _engine_names(args.engine), args.reason, Path(args.goldens), _progress)
+    entries = gate.bless(cases, _engine_names(args.engine), args.reason, Path(args.goldens), _progress)
     for case, engine, what in entries:
         print(f"{case} / {engine}: " + "; ".join(what))
-    print(f"wrote {len(entries)} golden(s) and an entry in {Path(args.goldens) / CHANGELOG}")
+    print(f"wrote {len(entries)} golden(s) and an entry in {Path(args.goldens) / gate.CHANGELOG}")
     return 0
 
 
@@ -318,20 +301,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rerun", action="store_true", help="run everything again, even what is stored and current")
     p.add_argument("--render-only", action="store_true",
                    help="only render what is stored (seconds); run nothing")
-    from rsmcheck.orchestration.gate import GOLDEN_DIR
-
     p = sub.add_parser("gate", help="run the cases' short variants and compare each engine with its golden")
     p.add_argument("case", nargs="*", help="case names (default: every stand-alone case)")
     p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
     p.add_argument("--json", action="store_true", help="one JSON object {\"gate\": [...]} on stdout")
     p.add_argument("--tolerances", action="store_true",
                    help="print the goldens' gate tolerances and what they were measured from; run nothing")
-    p.add_argument("--goldens", default=str(GOLDEN_DIR), help=argparse.SUPPRESS)
+    p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
     p = sub.add_parser("bless", help="re-run cases and rewrite their goldens (with --reason, into the changelog)")
     p.add_argument("case", nargs="+", help="case names, or 'all'")
     p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
     p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
-    p.add_argument("--goldens", default=str(GOLDEN_DIR), help=argparse.SUPPRESS)
+    p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
     sub.add_parser("bench", help="speed of each engine on the same work [--json] [--full]", add_help=False)
     p = sub.add_parser("pinocchio", help="rigid checks of the reference against Pinocchio", add_help=False)
     p.add_argument("rest", nargs=argparse.REMAINDER)
