@@ -135,7 +135,6 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self._held: tuple | None = None
         self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0, "newton_retries": 0}
         self._restart_pending = False
-        self.start = start
         self.start_label = "initial" if start is None else "rigid end state"
         self._base_start = (np.asarray(init.base_pose, float), np.asarray(init.base_rate, float))
         self._build(init)
