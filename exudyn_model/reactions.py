@@ -79,8 +79,9 @@ with contextlib.redirect_stdout(io.StringIO()):
 EPS_DEFAULT = 1e-4
 
 #: Solve the saddle-point system with SuperLU above this size (flexible model: 410 unknowns,
-#: 1788 non-zeros, 0.5 ms; dense LAPACK at 302 unknowns 0.8 ms median but up to 0.15 s when the threaded
-#: BLAS competes for the 2 cores), dense below (rigid model: 46 unknowns, 16 µs).
+#: 1788 non-zeros, 0.5 ms; dense LAPACK at 302 unknowns 0.8 ms median but up to 0.15 s
+#: when the threaded BLAS competes for the 2 cores), dense below (rigid model: 46
+#: unknowns, 16 µs).
 SPARSE_ABOVE = 100
 
 _STATES = (exu.ConfigurationType.Current, exu.ConfigurationType.StartOfStep, exu.ConfigurationType.Initial)
