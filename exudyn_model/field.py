@@ -15,7 +15,8 @@ to second order −μ ρᵀ(3 r̂r̂ᵀ − I)ρ/(2|r_O|³) (negative along the 
 The machinery that applies it (docs/physics.md §5, docs/exudyn.md §1): one
 `ObjectGenericODE2` without matrices, the *carrier*, over every mass coordinate (base,
 target, the links' nodes) receives the field's generalised forces: the tidal part at the
-positions of the start of each control period, held over the period (`_tidal_forces`), and
+positions of the middle of each control period (extrapolated from its start), held over
+the period (`_tidal_forces`, `SteppingMixin._set_inputs`), and
 the uniform thrust inertia (`_uniform_field_matrix`), set at every time step by
 `_ThrustInertia`; the co-moving point O follows its orbit with the period's mean thrust
 acceleration (`_advance_orbit`).  `FieldMixin` is that part of
@@ -108,9 +109,9 @@ class FieldMixin:
         self._uniform = (self._mass_base(), np.vstack(blocks))
         return self._uniform[1]
 
-    def _tidal_forces(self, q) -> np.ndarray:
-        """Generalised forces of the exact tidal field at the current positions (zero without
-        an orbit), carrier coordinates.  One evaluation of the field for every point (base,
+    def _tidal_forces(self, q, r_O: np.ndarray) -> np.ndarray:
+        """Generalised forces of the exact tidal field at the positions q about the orbit
+        point r_O (zero without an orbit), carrier coordinates.  One evaluation of the field for every point (base,
         target, the Gauss points of all links), then distributed on each body's coordinates:
         a flexible link's points are r_g = S(ξ_g) q_i and its forces Σ_g S(ξ_g)ᵀ ρA w_g Δg_g,
         the same S for every link (one mesh), so all links go through one product each way."""
@@ -127,7 +128,7 @@ class FieldMixin:
             if it.rigid:
                 qi = q[it.coords]
                 rigid_points.append(qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])]))
-        g = tidal(mu, self.r_O, np.vstack([q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :],
+        g = tidal(mu, r_O, np.vstack([q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :],
                                            flex_points, *rigid_points]))
         n_flex = len(self._flex)
         g_flex = g[2:2 + n_flex * n_g].reshape(n_flex, n_g, 2)

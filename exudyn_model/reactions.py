@@ -240,8 +240,9 @@ def for_engine(engine) -> ConstraintForces:
 def held_inputs(engine, inputs):
     """Within the block the mbs carries `inputs` as `ExudynEngine.advance` applies them at
     the start of the coming period (`ExudynEngine._set_inputs`, the same code), the thrust
-    inertia through a copy of the engine's `_ThrustInertia`, whose own state is left alone.
-    Everything set is put back afterwards.
+    inertia through a copy of the engine's `_ThrustInertia`, whose own state is left alone;
+    the tidal field is that of the sample's own positions (span 0), where the integrator
+    holds the one of the period's middle.  Everything set is put back afterwards.
 
     Why: at a control sample the loads in the mbs are still the last period's, while an
     observable belongs to the sample with the inputs held from it (the reference evaluates

@@ -71,7 +71,8 @@ class SteppingMixin:
         thrust = held[2]
         if thrust != 0.0 and not self.field:
             raise SimulationDiverged(self.name, self.t, "?", "thrust without field (build with field=True)", thrust)
-        self._set_inputs(held, self._thrust_inertia if self.field else None)
+        span = t_next - self.t
+        self._set_inputs(held, self._thrust_inertia if self.field else None, span)
         if held != self._held:
             if self.restart_on_input_change and self._is_step(held):
                 # a step in the held inputs is a jump in the accelerations: restart the
@@ -87,7 +88,6 @@ class SteppingMixin:
         # stays h = control_period/substeps; an interval that is not a whole number of steps
         # is done on its own with equal steps ≤ h
         h = self.dt / self.substeps
-        span = t_next - self.t
         n = span / h
         whole = round(n) >= 1 and abs(n - round(n)) < 1e-6
         n_steps = int(round(n)) if whole else max(1, math.ceil(n - 1e-6))
@@ -157,10 +157,18 @@ class SteppingMixin:
         self._restart_pending = True
         return ok
 
-    def _set_inputs(self, held: tuple, thrust_inertia: "_ThrustInertia | None") -> None:
-        """Put the held inputs (τ_m, τ_B, thrust) of the coming control period into the mbs;
-        with the field machinery also the base mass, the tidal forces (held over the
-        period) and the thrust inertia, through `thrust_inertia` (evaluated every step)."""
+    def _set_inputs(self, held: tuple, thrust_inertia: "_ThrustInertia | None", span: float = 0.0) -> None:
+        """Put the held inputs (τ_m, τ_B, thrust) of the coming control period of length
+        `span` [s] into the mbs; with the field machinery also the base mass, the tidal
+        forces and the thrust inertia, through `thrust_inertia` (evaluated every step).
+
+        The tidal forces are held over the period at its middle: evaluated at the
+        positions and the orbit point O extrapolated by span/2 (q + ½ span q̇,
+        r_O + ½ span v_O).  Held at the period's start they would lag the field by half a
+        period, a bias −½ Ġ span (Ġ = G ρ̇ for the gradient G ~ n²) that the relative
+        orbital motion grows over long drifts (docs/exudyn.md §5, item 5); at the middle
+        the hold's error is O(span²).  span = 0 (an observable at a sample): the field of
+        the current positions."""
         mbs = self.mbs
         tau_m, tau_B, thrust = held
         for j in range(6):
@@ -168,9 +176,10 @@ class SteppingMixin:
         mbs.SetLoadParameter(self.base_torque_load, "loadVector", [0.0, 0.0, float(tau_B)])
         mbs.SetLoadParameter(self.thrust_load, "loadVector", [float(thrust), 0.0, 0.0])
         if thrust_inertia is not None:
-            q, _ = self._qv()
+            q, v = self._qv()
             mbs.SetObjectParameter(self.base, "mass", self._mass_base())
-            thrust_inertia.hold(self._tidal_forces(q), self._uniform_field_matrix(), thrust / self._com(q)[1], self.t)
+            tidal = self._tidal_forces(q + 0.5 * span * v, self.r_O + 0.5 * span * self.v_O)
+            thrust_inertia.hold(tidal, self._uniform_field_matrix(), thrust / self._com(q)[1], self.t)
             mbs.SetObjectParameter(self.carrier, "forceVector", thrust_inertia.forces(q[self.i_base[2]]))
 
     def _is_step(self, held) -> bool:
