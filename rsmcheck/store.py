@@ -195,7 +195,9 @@ def git_commit(repo: str | os.PathLike[str] | None = None) -> tuple[str, str]:
 
     `commit` is `git rev-parse HEAD` or "unknown" (no git, no repository, no commit
     yet); `dirty` is "yes"/"no" for tracked files modified relative to HEAD, or
-    "unknown".
+    "unknown".  The goldens (`goldens/`) do not count: they are what `bless` writes, no
+    run reads them, and a bless of several cases would otherwise record its own first
+    goldens as uncommitted changes of the code.
     """
     cwd = Path(repo) if repo is not None else Path(__file__).resolve().parent.parent
     try:
@@ -210,7 +212,7 @@ def git_commit(repo: str | os.PathLike[str] | None = None) -> tuple[str, str]:
         return "unknown", "unknown"
     try:
         status = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)goldens"],
             cwd=cwd, capture_output=True, text=True, timeout=30, check=False,
         )
     except (OSError, subprocess.SubprocessError):

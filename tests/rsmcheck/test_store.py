@@ -243,6 +243,13 @@ def test_git_commit_of_a_repository(tmp_path):
     git("commit", "-q", "-m", "one")
     sha = git("rev-parse", "HEAD").strip()
     assert store.git_commit(tmp_path) == (sha, "no")
+    (tmp_path / "goldens").mkdir()
+    (tmp_path / "goldens" / "g.h5").write_text("1")
+    git("add", "goldens/g.h5")
+    git("commit", "-q", "-m", "golden")
+    sha = git("rev-parse", "HEAD").strip()
+    (tmp_path / "goldens" / "g.h5").write_text("2")  # a bless in progress: not the code
+    assert store.git_commit(tmp_path) == (sha, "no")
     (tmp_path / "a.txt").write_text("2")
     assert store.git_commit(tmp_path) == (sha, "yes")
 
