@@ -35,7 +35,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from reference_model.field import tidal
+from reference_model.field import tidal, tidal_potential
 
 # --- indices into the scalar parameter vector `sc` -----------------------------------
 S_MB0 = 0  # base mass at t = 0 [kg]
@@ -282,6 +282,60 @@ def sensor_values(x, m, sw):
     return kin.rE, kin.rEd, psi, psid, psi_w, com / msys, msys
 
 
+@njit(cache=True)
+def momentum(x, m, sw):
+    """(p_x, p_y, L_z): linear momentum and angular momentum about O of base, links and
+    target (observe's `momentum_I`).  Per link, exactly from the modal integrals
+    (r = R + A u, ṙ = Ṙ + θ̇ A S u + A e_y Φ ȧ, S1 = (m L/2, φ̄·a)):
+        p = m Ṙ + θ̇ A S S1 + A e_y (φ̄·ȧ)
+        L = R × p + (A S1) × Ṙ + θ̇ (I_0 + aᵀ M_ff a + J_extra) + (∫ρ ξ Φ)·ȧ."""
+    nq = m.nq
+    ny = nq + 3
+    ns = ny + 6
+    sc = m.sc
+    q = x[0:nq]
+    XT = x[nq:ny]
+    qd = x[ns:ns + nq]
+    XTd = x[ns + nq:ns + ny]
+    kin = kinematics(q, qd, m, sw.basis)
+    th, om, R, Rd = kin.th, kin.om, kin.R, kin.Rd
+    mB = sc[S_MB0] - x[2 * ns + 4]
+    mL = sc[S_ML]
+    px = mB * qd[0] + sc[S_MT] * XTd[0]
+    py = mB * qd[1] + sc[S_MT] * XTd[1]
+    L = mB * (q[0] * qd[1] - q[1] * qd[0]) + sc[S_JB] * qd[2]
+    L += sc[S_MT] * (XT[0] * XTd[1] - XT[1] * XTd[0]) + sc[S_JT] * XTd[2]
+    s1x = 0.5 * mL * sc[S_L]
+    for i in range(N_LINKS):
+        b = sw.basis[i]
+        o = m.mo[i]
+        n = m.nm[i]
+        s1y = 0.0
+        pbd = 0.0  # φ̄·ȧ
+        pxd = 0.0  # (∫ρ ξ Φ)·ȧ
+        inertia = sc[S_I0] + sc[S_JEX]
+        for a in range(n):
+            s1y += m.phi_bar[i, b, a] * q[o + a]
+            pbd += m.phi_bar[i, b, a] * qd[o + a]
+            pxd += m.phi_x[i, b, a] * qd[o + a]
+            for e in range(n):
+                inertia += q[o + a] * m.m_ff[i, b, a, e] * q[o + e]
+        c = math.cos(th[i])
+        s = math.sin(th[i])
+        asx = c * s1x - s * s1y  # A S1
+        asy = s * s1x + c * s1y
+        plx = mL * Rd[i, 0] - om[i] * asy - s * pbd  # A e_y = (−s, c)
+        ply = mL * Rd[i, 1] + om[i] * asx + c * pbd
+        px += plx
+        py += ply
+        L += R[i, 0] * ply - R[i, 1] * plx + asx * Rd[i, 1] - asy * Rd[i, 0] + om[i] * inertia + pxd
+    out = np.empty(3)
+    out[0] = px
+    out[1] = py
+    out[2] = L
+    return out
+
+
 # =====================================================================================
 # One link in Newtonian coordinates, eq. (A.3)
 # =====================================================================================
@@ -389,6 +443,30 @@ def _field_link(i, q, th, R, rO, aunif, m, basis, M):
         for a in range(n):
             Q[3 + a] += m.phi_g[i, b, g, a] * (-s * gx + c * gy)
     return Q
+
+
+@njit(cache=True)
+def links_tidal_potential(q, th, R, rO, m, basis):
+    """Tidal potential energy of the six links / μ [kg·m²/s² per m³/s²]: the distributed
+    mass at the Gauss points of `_field_link`, Σ_i Σ_g ρ w_g U(r_O, R_i + A u_g)/μ, the
+    energy whose negative gradient `_field_link`'s forces are (observe's energy)."""
+    rho = m.sc[S_RHO]
+    rel = np.empty(2)
+    e = 0.0
+    for i in range(N_LINKS):
+        n = m.nm[i]
+        b = basis[i]
+        c = math.cos(th[i])
+        s = math.sin(th[i])
+        for g in range(m.x_g.shape[0]):
+            wg = 0.0
+            for a in range(n):
+                wg += m.phi_g[i, b, g, a] * q[m.mo[i] + a]
+            ux = m.x_g[g]
+            rel[0] = R[i, 0] + c * ux - s * wg
+            rel[1] = R[i, 1] + s * ux + c * wg
+            e += rho * m.w_g[g] * tidal_potential(rO, rel)
+    return e
 
 
 # =====================================================================================

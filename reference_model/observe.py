@@ -22,59 +22,25 @@ def _cross(a: np.ndarray, b: np.ndarray) -> float:
     return float(a[0] * b[1] - a[1] * b[0])
 
 
-def link_s1(model: ReferenceModel, cfg: Configuration, q: np.ndarray, i: int) -> np.ndarray:
-    """S1 = ∫ρ u dξ of link i in its frame: (m L/2, φ̄·A) [kg·m]."""
-    lay = model.layout
-    n = lay.n_modes[i]
-    p = model.params.link
-    return np.array([0.5 * p.mass * p.length, model.arrays.phi_bar[i, cfg.basis[i], :n] @ q[lay.modes(i)]])
-
-
 def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> np.ndarray:
-    """(p_x, p_y, L_z): linear momentum and angular momentum about O of base, links, target.
-
-    Per link, exactly from the modal integrals (r = R + A u, ṙ = Ṙ + θ̇ A S u + A e_y Φ Ȧ):
-        p = m Ṙ + θ̇ A S S1 + A e_y (φ̄·Ȧ)
-        L = R × p + (A S1) × Ṙ + θ̇ (I_0 + Aᵀ M_ff A + J_extra) + (∫ρ ξ Φ)·Ȧ
-    """
-    lay = model.layout
-    prm = model.params
-    q, qd = x[lay.q], x[lay.qd]
-    XT, XTd = x[lay.target], x[lay.target_d]
-    mB = prm.base.mass - x[lay.m_used]
-    kin = model.kinematics(q, qd, cfg)
-    th, om, R, Rd = kin.th, kin.om, kin.R, kin.Rd
-    ar = model.arrays
-    p = mB * qd[0:2] + prm.target.mass * XTd[0:2]
-    L = _cross(q[0:2], mB * qd[0:2]) + prm.base.inertia_z * qd[2]
-    L += _cross(XT[0:2], prm.target.mass * XTd[0:2]) + prm.target.inertia_z * XTd[2]
-    for i in range(core.N_LINKS):
-        n = lay.n_modes[i]
-        b = cfg.basis[i]
-        a, ad = q[lay.modes(i)], qd[lay.modes(i)]
-        A = rot(th[i])
-        s1 = link_s1(model, cfg, q, i)
-        As1 = A @ s1
-        ey = A[:, 1]
-        pl = prm.link.mass * Rd[i] + om[i] * np.array([-As1[1], As1[0]]) + ey * (ar.phi_bar[i, b, :n] @ ad)
-        p += pl
-        inertia = ar.sc[core.S_I0] + a @ ar.m_ff[i, b, :n, :n] @ a + ar.sc[core.S_JEX]
-        L += _cross(R[i], pl) + _cross(As1, Rd[i]) + om[i] * inertia + ar.phi_x[i, b, :n] @ ad
-    return np.array([p[0], p[1], L])
+    """(p_x, p_y, L_z): linear momentum and angular momentum about O of base, links, target
+    (`core.momentum`, exactly from the modal integrals)."""
+    return core.momentum(np.asarray(x, float), *model.core_args(cfg))
 
 
 def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Configuration,
-                    Mg: np.ndarray) -> np.ndarray:
+                    Mg: np.ndarray, kin: core.Kinematics | None = None) -> np.ndarray:
     """(kinetic, elastic, gravitational) [J].
 
     kinetic       ½ Ẏᵀ M_g Ẏ + ½ Σ B_m θ̇_m²        (M_g of eq. 6 is the exact kinetic metric)
     elastic       ½ Σ aᵀ K_ff a + ½ Σ K_m (θ_m − ψ_J)² + ½ k_w (|ψ_w| − ψ_lim)² beyond the stops
     gravitational tidal potential about O (orbit on), Gauss points along the links
+    `kin`: the state's kinematics if the caller has them.
     """
     lay = model.layout
     prm = model.params
     Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
-    kin = 0.5 * Yd @ Mg @ Yd + 0.5 * prm.motor.inertia * np.sum(x[lay.motors_d] ** 2)
+    kinetic = 0.5 * Yd @ Mg @ Yd + 0.5 * prm.motor.inertia * np.sum(x[lay.motors_d] ** 2)
     q = x[lay.q]
     el = 0.0
     for i in range(core.N_LINKS):
@@ -83,7 +49,7 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
         el += 0.5 * a @ model.arrays.k_ff[i, cfg.basis[i], :n, :n] @ a
     psi_J, _ = model.joint_section_angles(q, x[lay.qd], cfg)
     el += 0.5 * prm.motor.stiffness * np.sum((x[lay.motors] - psi_J) ** 2)
-    psi_w, _ = wrist_angles(model, x, cfg)
+    psi_w, _ = wrist_angles(model, x, cfg, kin)
     for k in range(2):
         if cfg.grasp_on[k]:
             over = abs(psi_w[k]) - prm.wrist.limit
@@ -91,54 +57,37 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
                 el += 0.5 * prm.wrist.stiffness * over**2
     grav = 0.0
     if model.orbit:
-        grav = tidal_energy(model, x, cfg)
-    return np.array([kin, el, grav])
+        grav = tidal_energy(model, x, cfg, kin)
+    return np.array([kinetic, el, grav])
 
 
-def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> float:
+def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
+                 kin: core.Kinematics | None = None) -> float:
+    """Tidal potential energy about O [J]: base and target at their COM, the links over
+    their Gauss points (`core.links_tidal_potential`).  `kin`: the state's kinematics if
+    the caller has them."""
     lay = model.layout
     prm = model.params
     q = x[lay.q]
     rO = x[lay.r_O]
-    mu = prm.orbit.mu
     mB = prm.base.mass - x[lay.m_used]
+    if kin is None:
+        kin = model.kinematics(q, x[lay.qd], cfg)
     e = mB * tidal_potential(rO, q[0:2]) + prm.target.mass * tidal_potential(rO, x[lay.target][0:2])
-    kin = model.kinematics(q, x[lay.qd], cfg)
-    th, R = kin.th, kin.R
-    for i in range(core.N_LINKS):
-        n = lay.n_modes[i]
-        a = q[lay.modes(i)]
-        basis = model.bases[i][int(cfg.basis[i])]
-        A = rot(th[i])
-        for xg, wg, ph in zip(basis.x_gauss, basis.w_gauss, basis.phi_gauss):
-            rel = R[i] + A @ np.array([xg, ph[:n] @ a])
-            e += prm.link.rho_a * wg * tidal_potential(rO, rel)
-    return mu * e
+    e += core.links_tidal_potential(q, kin.th, kin.R, rO, model.arrays, cfg.basis)
+    return prm.orbit.mu * e
 
 
-def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, np.ndarray]:
+def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
+                 kin: core.Kinematics | None = None) -> tuple[np.ndarray, np.ndarray]:
     """ψ_w, ψ̇_w of both wrists: θ_T relative to the distal end section of the terminal link
-    (docs/physics.md §4.3), whether or not the arm holds the target."""
+    (docs/physics.md §4.3), whether or not the arm holds the target.  `kin`: the state's
+    kinematics if the caller has them."""
     lay = model.layout
     q, qd = x[lay.q], x[lay.qd]
-    kin = model.kinematics(q, qd, cfg)
+    if kin is None:
+        kin = model.kinematics(q, qd, cfg)
     return core.wrist_angles(q, qd, x[lay.target], x[lay.target_d], kin.th, kin.om, model.arrays, cfg.basis)
-
-
-def system_com(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, float]:
-    """System COM relative to O (inertial axes) and the system mass."""
-    lay = model.layout
-    prm = model.params
-    q = x[lay.q]
-    mB = prm.base.mass - x[lay.m_used]
-    kin = model.kinematics(q, x[lay.qd], cfg)
-    th, R = kin.th, kin.R
-    s = mB * q[0:2] + prm.target.mass * x[lay.target][0:2]
-    m = mB + prm.target.mass
-    for i in range(core.N_LINKS):
-        s = s + prm.link.mass * R[i] + rot(th[i]) @ link_s1(model, cfg, q, i)
-        m += prm.link.mass
-    return s / m, m
 
 
 def sensors(model: ReferenceModel, t: float, x: np.ndarray, cfg: Configuration) -> Sensors:
@@ -174,10 +123,9 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
     _, Rc = core.solve_constrained(Mg, f, A, Bs, model.arrays)
     kin = model.kinematics(q, qd, cfg)
-    rE, rEd = kin.rE, kin.rEd
+    rE, rEd, psi_J, _, psi_w, com, msys = core.sensor_values(x, *model.core_args(cfg))
     AB_T = rot(q[2]).T
     rB = q[0:2]
-    com, msys = system_com(model, x, cfg)
     reaction = np.zeros(4)
     residual = np.zeros(4)
     row = 0
@@ -190,7 +138,6 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
     deflection = np.zeros(6)
     for i in range(core.N_LINKS):
         deflection[i] = model.bases[i][int(cfg.basis[i])].phi_mid @ q[lay.modes(i)]
-    psi_J, _ = model.joint_section_angles(q, qd, cfg)
     # LVLH of the base: x radial outward, y along-track; without an orbit, inertial axes
     r_abs = x[lay.r_O] + rB
     radial = r_abs / np.linalg.norm(r_abs) if model.orbit else np.array([1.0, 0.0])
@@ -208,7 +155,7 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
         "com_pos_B": AB_T @ (com - rB),
         "joint_angles": psi_J,
         "joint_frame_angles": q[3:9].copy(),
-        "wrist_angles": wrist_angles(model, x, cfg)[0],
+        "wrist_angles": psi_w,
         "motor_angles": x[lay.motors].copy(),
         "motor_torques": u[core.U_TAU_M:core.U_TAU_M + 6].copy(),
         "base_torque": float(u[core.U_TAU_B]),
@@ -217,7 +164,7 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
         "reaction_forces_I": reaction,
         "constraint_residual": residual,
         "grasp_state": cfg.grasp_on.astype(float),
-        "energy": energy_of_state(model, x, u, cfg, Mg),
+        "energy": energy_of_state(model, x, u, cfg, Mg, kin),
         "momentum_I": momentum_of_state(model, x, cfg),
         "altitude": float(np.linalg.norm(alt_vec) - prm.orbit.earth_radius) if model.orbit else 0.0,
         "target_rel_lvlh": np.array([d_T @ radial, d_T @ along]),
