@@ -47,11 +47,11 @@ on or off needs no re-initialisation: the evaluation reads `activeConnector` at 
 call and the system sizes do not change (same λ as a fresh object, tested; the capture
 projection is bit for bit the one of a freshly initialised solver).
 
-Cost per evaluation (2 cores, quiet): flexible model (6 links × 8 ANCF elements, hubs and
-frame bodies: 288 ODE2 coordinates, 122 AE coordinates) 3.5 ms: the
-dense system Jacobian zeroed and read back 1.8 ms (the Python interface offers no sparse
-access), SuperLU 0.5 ms, γ 0.26 ms, gathering the nonzeros 0.6 ms — 6.2 ms before the
-nonzeros were gathered block by block and the Jacobian filled in sparse storage (the same
+Cost per evaluation (p3's flexible model: 6 links × 8 ANCF elements, hubs and frame bodies,
+288 ODE2 and 122 AE coordinates; one core, the other busy): 3.3 ms, of which the dense
+system Jacobian zeroed and read back ~1.8 ms (the Python interface offers no sparse
+access), SuperLU 0.5 ms, γ 0.26 ms, gathering the nonzeros 0.6 ms; 3.6 ms before the
+Jacobian was filled in sparse storage and the nonzeros gathered block by block (the same
 λ bit for bit).  Rigid model (30 + 16, dense solve): 0.19 ms.
 """
 
