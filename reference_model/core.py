@@ -246,24 +246,27 @@ def wrist_angles(q, qd, XT, XTd, th, om, m, basis):
 
 
 @njit(cache=True)
+def _mechanical_state(x, m):
+    """(q, X_T, q̇, Ẋ_T, m_B) of the state x: the generalized coordinates, the target's pose,
+    their rates and the base mass (the propellant used is the state's last entry)."""
+    nq = m.nq
+    ny = nq + 3
+    ns = ny + 6
+    return x[0:nq], x[nq:ny], x[ns:ns + nq], x[ns + nq:ns + ny], m.sc[S_MB0] - x[2 * ns + 4]
+
+
+@njit(cache=True)
 def sensor_values(x, m, sw):
     """What the sensors of the shared driver read, in one call (rsmcheck.engine.Sensors):
     end effectors rE, ṙE (2×2), ψ_J, ψ̇_J (6), wrist angles ψ_w (2), system COM relative to
     O (2) and the system mass.  COM: (m_B r_B + m_T r_T + Σ_i (m R_i + A(θ_i) S1_i)) / m_sys
     with S1_i = (m L/2, φ̄·a_i)."""
-    nq = m.nq
-    ny = nq + 3
-    ns = ny + 6
     sc = m.sc
-    q = x[0:nq]
-    XT = x[nq:ny]
-    qd = x[ns:ns + nq]
-    XTd = x[ns + nq:ns + ny]
+    q, XT, qd, XTd, mB = _mechanical_state(x, m)
     kin = kinematics(q, qd, m, sw.basis)
     th, om, R = kin.th, kin.om, kin.R
     psi, psid = joint_section_angles(q, qd, m, sw.basis)
     psi_w, _ = wrist_angles(q, qd, XT, XTd, th, om, m, sw.basis)
-    mB = sc[S_MB0] - x[2 * ns + 4]
     mL = sc[S_ML]
     msys = mB + sc[S_MT] + N_LINKS * mL
     com = np.zeros(2)
@@ -289,17 +292,10 @@ def momentum(x, m, sw):
     (r = R + A u, ṙ = Ṙ + θ̇ A S u + A e_y Φ ȧ, S1 = (m L/2, φ̄·a)):
         p = m Ṙ + θ̇ A S S1 + A e_y (φ̄·ȧ)
         L = R × p + (A S1) × Ṙ + θ̇ (I_0 + aᵀ M_ff a + J_extra) + (∫ρ ξ Φ)·ȧ."""
-    nq = m.nq
-    ny = nq + 3
-    ns = ny + 6
     sc = m.sc
-    q = x[0:nq]
-    XT = x[nq:ny]
-    qd = x[ns:ns + nq]
-    XTd = x[ns + nq:ns + ny]
+    q, XT, qd, XTd, mB = _mechanical_state(x, m)
     kin = kinematics(q, qd, m, sw.basis)
     th, om, R, Rd = kin.th, kin.om, kin.R, kin.Rd
-    mB = sc[S_MB0] - x[2 * ns + 4]
     mL = sc[S_ML]
     px = mB * qd[0] + sc[S_MT] * XTd[0]
     py = mB * qd[1] + sc[S_MT] * XTd[1]
@@ -407,6 +403,19 @@ def link_newton(i, q, qd, th, om, m, basis):
 
 
 @njit(cache=True)
+def _gauss_point(i, b, g, q, c, s, R, m, rel):
+    """Gauss point g of link i (basis b, frame angle with cosine c and sine s) relative to O,
+    written into `rel`: R_i + A (x_g, w_g); returns its deflection w_g = φ(x_g)·a."""
+    wg = 0.0
+    for a in range(m.nm[i]):
+        wg += m.phi_g[i, b, g, a] * q[m.mo[i] + a]
+    ux = m.x_g[g]
+    rel[0] = R[i, 0] + c * ux - s * wg
+    rel[1] = R[i, 1] + s * ux + c * wg
+    return wg
+
+
+@njit(cache=True)
 def _field_link(i, q, th, R, rO, aunif, m, basis, M):
     """Generalised force of the acceleration field on link i, over its distributed mass.
 
@@ -427,12 +436,8 @@ def _field_link(i, q, th, R, rO, aunif, m, basis, M):
     rel = np.zeros(2)
     rho = sc[S_RHO]
     for g in range(m.x_g.shape[0]):
-        wg = 0.0
-        for a in range(n):
-            wg += m.phi_g[i, b, g, a] * q[m.mo[i] + a]
+        wg = _gauss_point(i, b, g, q, c, s, R, m, rel)
         ux = m.x_g[g]
-        rel[0] = R[i, 0] + c * ux - s * wg
-        rel[1] = R[i, 1] + s * ux + c * wg
         gx, gy = tidal(rO, rel)
         gx *= sc[S_MU] * rho * m.w_g[g]
         gy *= sc[S_MU] * rho * m.w_g[g]
@@ -454,17 +459,11 @@ def links_tidal_potential(q, th, R, rO, m, basis):
     rel = np.empty(2)
     e = 0.0
     for i in range(N_LINKS):
-        n = m.nm[i]
         b = basis[i]
         c = math.cos(th[i])
         s = math.sin(th[i])
         for g in range(m.x_g.shape[0]):
-            wg = 0.0
-            for a in range(n):
-                wg += m.phi_g[i, b, g, a] * q[m.mo[i] + a]
-            ux = m.x_g[g]
-            rel[0] = R[i, 0] + c * ux - s * wg
-            rel[1] = R[i, 1] + s * ux + c * wg
+            _gauss_point(i, b, g, q, c, s, R, m, rel)
             e += rho * m.w_g[g] * tidal_potential(rO, rel)
     return e
 
