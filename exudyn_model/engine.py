@@ -30,7 +30,7 @@ from exudyn_model.field import FieldMixin
 from exudyn_model.observe import ObserveMixin
 from exudyn_model.stepping import SteppingMixin, _Worker
 from exudyn_model.switching import SwitchingMixin
-from rsmcheck.cases import Case
+from rsmcheck.cases import Case, first_given
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.initial import StartState, build_initial
 from rsmcheck.params import Params
@@ -54,12 +54,6 @@ NEWTON_ATOL_RIGID = 1e-10
 #: which makes controlled cases converge at first order in h (docs/exudyn.md §6);
 #: 0 restarts at every change (second order again, one factorisation per period)
 RESTART_THRESHOLD_DEFAULT = 0.01
-
-
-def _first(*values):
-    """The first of `values` that is not None (an explicit option, the case's setting, the
-    engine's default)."""
-    return next(v for v in values if v is not None)
 
 
 class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, ObserveMixin):
@@ -100,22 +94,23 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.rigid = bool(rigid)
         # explicit options > the case's [exudyn] table > the engine defaults
         given = case.exudyn
-        self.n_elements = int(_first(n_elements, given.n_elements, links.N_ELEMENTS_DEFAULT))
-        self.substeps = int(_first(substeps, given.substeps, SUBSTEPS_DEFAULT))
+        self.n_elements = int(first_given(n_elements, given.n_elements, links.N_ELEMENTS_DEFAULT))
+        self.substeps = int(first_given(substeps, given.substeps, SUBSTEPS_DEFAULT))
         self.spectral_radius = float(spectral_radius)
         self.newton_rtol = float(newton_rtol)
         p = self.params
         self.newton_atol = float(NEWTON_ATOL_RIGID if newton_atol is None and self.rigid else
-                                 _first(newton_atol, given.newton_atol,
-                                        NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
+                                 first_given(newton_atol, given.newton_atol,
+                                             NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)
-        self.restart_threshold = float(_first(restart_threshold, given.restart_threshold, RESTART_THRESHOLD_DEFAULT))
+        self.restart_threshold = float(first_given(restart_threshold, given.restart_threshold,
+                                                   RESTART_THRESHOLD_DEFAULT))
         if stepping not in ("continuous", "period"):
             raise ValueError(f"stepping must be 'continuous' or 'period', got {stepping!r}")
         self.stepping = stepping
-        constraints = _first(constraints, given.constraints, "index3")
+        constraints = first_given(constraints, given.constraints, "index3")
         if constraints not in ("index3", "index2"):
             raise ValueError(f"constraints must be 'index3' or 'index2', got {constraints!r}")
         self.constraints = constraints

@@ -111,10 +111,11 @@ class FieldMixin:
 
     def _tidal_forces(self, q, r_O: np.ndarray) -> np.ndarray:
         """Generalised forces of the exact tidal field at the positions q about the orbit
-        point r_O (zero without an orbit), carrier coordinates.  One evaluation of the field for every point (base,
-        target, the Gauss points of all links), then distributed on each body's coordinates:
-        a flexible link's points are r_g = S(ξ_g) q_i and its forces Σ_g S(ξ_g)ᵀ ρA w_g Δg_g,
-        the same S for every link (one mesh), so all links go through one product each way."""
+        point r_O (zero without an orbit), carrier coordinates.  One evaluation of the field
+        for every point (base, target, the Gauss points of all links), then distributed on
+        each body's coordinates: a flexible link's points are r_g = S(ξ_g) q_i and its forces
+        Σ_g S(ξ_g)ᵀ ρA w_g Δg_g, the same S for every link (one mesh), so all links go through
+        one product each way."""
         if not self.orbit:
             return np.zeros(self._n_carrier)
         p = self.params
@@ -129,7 +130,7 @@ class FieldMixin:
                 qi = q[it.coords]
                 rigid_points.append(qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])]))
         g = tidal(mu, r_O, np.vstack([q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :],
-                                           flex_points, *rigid_points]))
+                                      flex_points, *rigid_points]))
         n_flex = len(self._flex)
         g_flex = g[2:2 + n_flex * n_g].reshape(n_flex, n_g, 2)
         # Σ_g Sᵀ(ξ_g) f_g: point forces at the Gauss points on each link's coordinates

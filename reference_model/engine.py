@@ -23,7 +23,7 @@ from reference_model import observe, switching
 from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, initial_state
 from reference_model.stepping import SteppingMixin
 from reference_model.trbdf2 import N_WORK
-from rsmcheck.cases import Case
+from rsmcheck.cases import Case, first_given
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.initial import StartState, build_initial, orbit_start
 from rsmcheck.params import Params
@@ -52,10 +52,7 @@ class ReferenceEngine(SteppingMixin):
         self.params = params or case.params
         self.case = case
         self.start = start
-        if static_modes is None:
-            static_modes = case.reference.static_modes
-        if static_modes is None:
-            static_modes = STATIC_MODES_DEFAULT
+        static_modes = first_given(static_modes, case.reference.static_modes, STATIC_MODES_DEFAULT)
         self.model = ReferenceModel(self.params, n_modes if n_modes is not None else case.n_modes,
                                     orbit=case.orbit, static_modes=static_modes)
         self.rtol = rtol if rtol is not None else case.solver.rtol
@@ -63,8 +60,8 @@ class ReferenceEngine(SteppingMixin):
         if self.integrator not in INTEGRATORS:
             raise ValueError(f"integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
         # largest step: explicit option > the case's [reference] table > the integrator's default
-        h_max = h_max if h_max is not None else case.reference.h_max
-        self.h_max = float(h_max if h_max is not None else (H_MAX if self.integrator == "dopri5" else H_MAX_IMPLICIT))
+        self.h_max = float(first_given(h_max, case.reference.h_max,
+                                       H_MAX if self.integrator == "dopri5" else H_MAX_IMPLICIT))
         init = build_initial(case, self.params, start)
         self.x, self.cfg = initial_state(self.model, init)
         self.t = 0.0

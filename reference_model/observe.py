@@ -18,10 +18,6 @@ from rsmcheck.engine import Sensors
 from rsmcheck.geometry import rot
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> float:
-    return float(a[0] * b[1] - a[1] * b[0])
-
-
 def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> np.ndarray:
     """(p_x, p_y, L_z): linear momentum and angular momentum about O of base, links, target
     (`core.momentum`, exactly from the modal integrals)."""
@@ -29,19 +25,19 @@ def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) 
 
 
 def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Configuration,
-                    Mg: np.ndarray, kin: core.Kinematics | None = None) -> np.ndarray:
+                    Mg: np.ndarray) -> np.ndarray:
     """(kinetic, elastic, gravitational) [J].
 
     kinetic       ½ Ẏᵀ M_g Ẏ + ½ Σ B_m θ̇_m²        (M_g of eq. 6 is the exact kinetic metric)
     elastic       ½ Σ aᵀ K_ff a + ½ Σ K_m (θ_m − ψ_J)² + ½ k_w (|ψ_w| − ψ_lim)² beyond the stops
     gravitational tidal potential about O (orbit on), Gauss points along the links
-    `kin`: the state's kinematics if the caller has them.
     """
     lay = model.layout
     prm = model.params
     Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
     kinetic = 0.5 * Yd @ Mg @ Yd + 0.5 * prm.motor.inertia * np.sum(x[lay.motors_d] ** 2)
     q = x[lay.q]
+    kin = model.kinematics(q, x[lay.qd], cfg)
     el = 0.0
     for i in range(core.N_LINKS):
         n = lay.n_modes[i]
@@ -61,32 +57,26 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
     return np.array([kinetic, el, grav])
 
 
-def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
-                 kin: core.Kinematics | None = None) -> float:
+def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration, kin: core.Kinematics) -> float:
     """Tidal potential energy about O [J]: base and target at their COM, the links over
-    their Gauss points (`core.links_tidal_potential`).  `kin`: the state's kinematics if
-    the caller has them."""
+    their Gauss points (`core.links_tidal_potential`); `kin` the state's kinematics."""
     lay = model.layout
     prm = model.params
     q = x[lay.q]
     rO = x[lay.r_O]
     mB = prm.base.mass - x[lay.m_used]
-    if kin is None:
-        kin = model.kinematics(q, x[lay.qd], cfg)
     e = mB * tidal_potential(rO, q[0:2]) + prm.target.mass * tidal_potential(rO, x[lay.target][0:2])
     e += core.links_tidal_potential(q, kin.th, kin.R, rO, model.arrays, cfg.basis)
     return prm.orbit.mu * e
 
 
 def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
-                 kin: core.Kinematics | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 kin: core.Kinematics) -> tuple[np.ndarray, np.ndarray]:
     """ψ_w, ψ̇_w of both wrists: θ_T relative to the distal end section of the terminal link
-    (docs/physics.md §4.3), whether or not the arm holds the target.  `kin`: the state's
-    kinematics if the caller has them."""
+    (docs/physics.md §4.3), whether or not the arm holds the target; `kin` the state's
+    kinematics."""
     lay = model.layout
     q, qd = x[lay.q], x[lay.qd]
-    if kin is None:
-        kin = model.kinematics(q, qd, cfg)
     return core.wrist_angles(q, qd, x[lay.target], x[lay.target_d], kin.th, kin.om, model.arrays, cfg.basis)
 
 
@@ -118,11 +108,10 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
     """
     lay = model.layout
     prm = model.params
-    q, qd = x[lay.q], x[lay.qd]
+    q = x[lay.q]
     XT = x[lay.target]
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
     _, Rc = core.solve_constrained(Mg, f, A, Bs, model.arrays)
-    kin = model.kinematics(q, qd, cfg)
     rE, rEd, psi_J, _, psi_w, com, msys = core.sensor_values(x, *model.core_args(cfg))
     AB_T = rot(q[2]).T
     rB = q[0:2]
@@ -164,7 +153,7 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
         "reaction_forces_I": reaction,
         "constraint_residual": residual,
         "grasp_state": cfg.grasp_on.astype(float),
-        "energy": energy_of_state(model, x, u, cfg, Mg, kin),
+        "energy": energy_of_state(model, x, u, cfg, Mg),
         "momentum_I": momentum_of_state(model, x, cfg),
         "altitude": float(np.linalg.norm(alt_vec) - prm.orbit.earth_radius) if model.orbit else 0.0,
         "target_rel_lvlh": np.array([d_T @ radial, d_T @ along]),

@@ -160,6 +160,12 @@ class SolverSpec:
         return int(round(self.output_period / self.control_period))
 
 
+def first_given(*values):
+    """The first of `values` that is not None: an engine setting from its explicit option,
+    the case's [reference]/[exudyn] table and the engine's default, in that order."""
+    return next(v for v in values if v is not None)
+
+
 class _EngineSettings:
     def given(self) -> dict[str, Any]:
         """The settings the case file gives (None = not given), without `why`: a run's

@@ -118,7 +118,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     # the runs come from rsmcheck.orchestration.runs.get_runs, as the report's do: stored in
     # and reused from --out when given, else made in memory; the rows by compare.case_rows
     results = compare.check_cases(cases, args.short, options, out, rerun=args.rerun, workers=0 if args.serial else 2,
-                          progress=_progress if not args.json and sys.stderr.isatty() else None)
+                                  progress=_progress if not args.json and sys.stderr.isatty() else None)
     for res in results:
         if res.error is not None:  # reported as before: the cases ahead of it are shown
             raise res.error

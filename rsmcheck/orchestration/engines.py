@@ -23,7 +23,6 @@ def make_engine(name: str, case: Case, start: StartState | None = None, **option
     here, lazily: Exudyn is heavy, and a machine may lack it), started from `start` when
     the run continues another: its rigid part, then the engine's own exact state on top
     when there is one (`import_state`, same model size)."""
-    # engines are imported lazily: Exudyn is heavy and optional, numba compiles on import
     if name == "reference":
         from reference_model.engine import ReferenceEngine
 
