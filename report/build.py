@@ -37,6 +37,7 @@ from rsmcheck.cases import Case, list_cases, load_case
 from rsmcheck.errors import InputError
 from rsmcheck.observables import BY_NAME
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
+from rsmcheck.orchestration.compare import metric_label
 from rsmcheck.orchestration.gate import golden_path, read_golden
 from rsmcheck.report import paper
 from rsmcheck.report.plots import comparison_figure, run_marks
@@ -100,7 +101,8 @@ def verdict_rows(verdict: dict) -> list[VerdictRow]:
                 note += " — not compared at the constraint switches: " + ", ".join(
                     f"t = {a['time']:.6g} s ({fmt(a['error'])})" for a in r["at_switches"])
             anchor = r["case"].replace("/", "-")
-            rows.append(VerdictRow(kind, r["case"], r["observable"], r.get("metric", ""), r["error"], r["tolerance"],
+            rows.append(VerdictRow(kind, r["case"], r["observable"], metric_label(r.get("metric", ""), r.get("window")),
+                                   r["error"], r["tolerance"],
                                    _margin(r.get("margin")), bool(r["pass"]), note, anchor))
     for g in verdict.get("gate", []):
         ratio = g.get("largest_ratio")
@@ -238,12 +240,12 @@ def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict]
             figs = []
             for spec in ph.compare:
                 row = checks.get((f"{case.name}/{ph.name}", spec.observable))
-                title = (f"{spec.observable} [{BY_NAME[spec.observable].unit}] — {spec.metric} error "
+                title = (f"{spec.observable} [{BY_NAME[spec.observable].unit}] — {metric_label(spec.metric, spec.window)} error "
                          f"{fmt(row['error']) if row else '–'} vs tolerance {fmt(row['tolerance'] if row else spec.tolerance)}"
                          + (f" ({'pass' if row['pass'] else 'FAIL'})" if row else ""))
                 figs.append(page.figure(comparison_figure(
                     title, BY_NAME[spec.observable].unit, pruns, spec.observable,
-                    tolerance=row["tolerance"] if row else spec.tolerance, metric=spec.metric,
+                    tolerance=row["tolerance"] if row else spec.tolerance, metric=spec.metric, compared=spec.window,
                     events=run_marks(pruns[names[0]], t0), time_offset=t0, bands=bounds,
                     window=(t0, t0 + ph.duration))))
             rows = [checks[(f"{case.name}/{ph.name}", s.observable)] for s in ph.compare
@@ -275,10 +277,12 @@ def case_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict], g
             spec = next((s for s in variant.compare if s.observable == name), None)
             row = checks.get((case.name, name))
             title = f"{name} [{BY_NAME[name].unit}]" + (
-                f" — {spec.metric} error {fmt(row['error'])} vs tolerance {fmt(spec.tolerance)}" if row and spec else "")
+                f" — {metric_label(spec.metric, spec.window)} error {fmt(row['error'])} vs tolerance {fmt(spec.tolerance)}"
+                if row and spec else "")
             first = next(iter(runs.values()))
             figs.append(page.figure(comparison_figure(title, BY_NAME[name].unit, runs, name, golden=golden,
                                                       tolerance=spec.tolerance if spec else None,
+                                                      compared=spec.window if spec else None,
                                                       metric=spec.metric if spec else "", events=run_marks(first))))
         out.append({"id": case.name, "title": case.name, "case": variant, "missing": False,
                     "rows": [checks[(case.name, s.observable)] for s in variant.compare if (case.name, s.observable) in checks],

@@ -120,9 +120,11 @@ def comparison_figure(title: str, unit: str, runs: dict[str, EngineRun], name: s
                       golden: EngineRun | None = None, tolerance: float | None = None, metric: str = "",
                       events: Sequence[tuple[float, str, str]] = (), time_offset: float = 0.0,
                       bands: Sequence[tuple[str, float, float]] = (), labels: Sequence[str] | None = None,
-                      window: tuple[float, float] | None = None) -> dict:
+                      window: tuple[float, float] | None = None,
+                      compared: Sequence[float] | None = None) -> dict:
     """An observable of every engine overlaid (top) and, below, |reference − Exudyn| (the
-    largest component) on a log scale with the tolerance of the check; events marked."""
+    largest component) on a log scale with the tolerance of the check, drawn over the
+    interval the check compares (`compared` [s], None: the whole run); events marked."""
     data: list[dict] = []
     both = "reference" in runs and "exudyn" in runs
     # the legend: one entry per component (colour), one per engine (line style)
@@ -146,8 +148,10 @@ def comparison_figure(title: str, unit: str, runs: dict[str, EngineRun], name: s
             floor = max(float(np.max(err[np.isfinite(err)], initial=0.0)) * 1e-8, 1e-300)
             data.append(line(t, np.maximum(err, floor), "|ref − Exudyn|", "#444", yaxis="y2", group="error"))
             if tolerance is not None:
+                span = ([float(t[0]), float(t[-1])] if compared is None
+                        else [float(compared[0]) + time_offset, float(compared[1]) + time_offset])
                 data.append({"type": "scatter", "mode": "lines", "name": f"tolerance ({metric})",
-                             "x": [float(t[0]), float(t[-1])], "y": [tolerance, tolerance], "yaxis": "y2",
+                             "x": span, "y": [tolerance, tolerance], "yaxis": "y2",
                              "line": {"color": "#b00", "dash": "dash", "width": 1.2}, "legendgroup": "error"})
         layout["yaxis2"] = {"type": "log", "domain": [0, 0.28], "title": {"text": "error"}, "anchor": "x",
                             "gridcolor": "#eee", "exponentformat": "power"}

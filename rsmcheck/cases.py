@@ -202,7 +202,9 @@ class CompareSpec:
     tolerance: float
     why: str
     metric: str = "max_abs"
-    window: tuple[float, float] | None = None  # metric "growth": the fit interval [s]
+    #: the interval [s] the metric looks at: required by "growth" (the fit interval),
+    #: optional for "max_abs" and "rms" (the samples t0 ≤ t ≤ t1 only), not with "final"
+    window: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -849,8 +851,11 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
             "window": lambda kk, x: _window(w, kk, x),
         })
         _require(w, k, c, ("tolerance", "why"))
-        if (c.get("metric") == "growth") != ("window" in c):
-            raise InputError(w, f"{k}.window", "required with metric \"growth\" and only there")
+        metric = c.get("metric", "max_abs")
+        if metric == "growth" and "window" not in c:
+            raise InputError(w, f"{k}.window", "required with metric \"growth\" (the fit interval)")
+        if metric == "final" and "window" in c:
+            raise InputError(w, f"{k}.window", "not with metric \"final\" (the last sample)")
         out.append(CompareSpec(observable=obs, **c))
     return tuple(out)
 

@@ -133,7 +133,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
               f"exudyn {res.wall_s['exudyn']:.1f} s)")
         print(f"  {'observable':20s} {'metric':8s} {'error':>10s} {'tolerance':>10s} {'margin':>8s}  result")
         for r in res.rows:
-            print(f"  {r.observable:20s} {r.metric:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
+            print(f"  {r.observable:20s} {r.metric_label:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
                   + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
             if r.switch_note():
                 print(f"  {'':20s} {r.switch_note()}")

@@ -15,6 +15,10 @@ tolerance *in the observable's unit* (SI, radians), a `why` sentence and a metri
               where the amplitude is seeded by the ripple's phase and then amplified as
               e^{σt}, so differences of the signal itself say nothing (docs/cases.md)
 
+`max_abs` and `rms` may take a `window` too: then only the samples t0 ≤ t ≤ t1 count, for
+an interval the case's why says the engines can be held to (docs/cases.md §5: a swing
+whose stiff stop contacts the two engines reach at instants a fraction of a second apart).
+
 (a: the other engine, b: the reference; c runs over the components of the observable).
 The margin is tolerance / error: > 1 passes, and says how much room is left.
 
@@ -143,12 +147,18 @@ def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = 
                skip: np.ndarray | None = None) -> tuple[float, float, int]:
     """(error, time of the worst sample, worst component) of observable `name` by `metric`,
     in the observable's unit (1/s for `growth`, which needs `window`).  `worst_time` is NaN
-    for `rms` and `growth`.  `skip`: indices of samples that `max_abs` and `rms` leave out."""
+    for `rms` and `growth`.  `skip`: indices of samples that `max_abs` and `rms` leave out;
+    `window`: for them, the interval [t0, t1] whose samples are compared."""
     t = _same_times(case, reference, other)
     a, b = _pair(reference, other, name, t.size)
-    if skip is not None and len(skip) and metric in ("max_abs", "rms"):
+    if metric in ("max_abs", "rms"):
         keep = np.ones(t.size, bool)
-        keep[np.asarray(skip, int)] = False
+        if skip is not None and len(skip):
+            keep[np.asarray(skip, int)] = False
+        if window is not None:
+            keep &= (t >= window[0] - 1e-9) & (t <= window[1] + 1e-9)
+            if not np.any(keep):
+                raise ValueError(f"{case}: {name}: no sample in the window [{window[0]}, {window[1]}] s")
         t, a, b = t[keep], a[keep], b[keep]
     if metric == "growth":
         if window is None:
@@ -178,6 +188,11 @@ def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = 
 # ---------------------------------------------------------------------------------------
 # case checks: the [compare] table of a case file
 # ---------------------------------------------------------------------------------------
+def metric_label(metric: str, window: Sequence[float] | None) -> str:
+    """A [compare] entry's metric as people read it: 'rms', 'max_abs [0, 190] s'."""
+    return metric if window is None else f"{metric} [{window[0]:g}, {window[1]:g}] s"
+
+
 class _Verdict:
     """margin = tolerance / error (> 1 passes) and pass, for rows with error and tolerance."""
 
@@ -213,6 +228,13 @@ class Check(_Verdict):
     #: a chained phase: the difference the engines carry into it, max_c |a_c(0) − b_c(0)|,
     #: already added to `tolerance` (see `check_runs`)
     inherited: float = 0.0
+    #: the interval [s] the metric looked at (the case's `window`), None: the whole run
+    window: tuple[float, float] | None = None
+
+    @property
+    def metric_label(self) -> str:
+        """The metric with its window, e.g. 'max_abs [0, 190] s'."""
+        return metric_label(self.metric, self.window)
 
     def as_dict(self) -> dict[str, Any]:
         out = {"case": self.case, "observable": self.observable, "error": _finite(self.error),
@@ -225,6 +247,8 @@ class Check(_Verdict):
             out["at_switches"] = [{"time": ts, "error": _finite(e)} for ts, e in self.at_switches]
         if self.inherited:
             out["inherited"] = _finite(self.inherited)
+        if self.window is not None:
+            out["window"] = list(self.window)
         return out
 
     def switch_note(self) -> str:
@@ -261,7 +285,7 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
         at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in skip) if skip is not None else ()
         d0 = float(np.max(np.abs(a[0] - b[0]))) if chained and spec.metric in ("max_abs", "rms") and t.size else 0.0
         rows.append(Check(case.name, spec.observable, err, float(spec.tolerance) + d0, spec.metric, spec.why,
-                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at, d0))
+                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at, d0, spec.window))
     return rows
 
 

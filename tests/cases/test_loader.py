@@ -99,6 +99,12 @@ def test_growth_metric_takes_a_window(tmp_path):
     assert (spec.metric, spec.window) == ("growth", (0.2, 0.9))
 
 
+def test_max_abs_takes_an_optional_window(tmp_path):
+    text = VALID + '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nwindow = [0.2, 0.9]\n'
+    (spec,) = load_case(write(tmp_path, text, "good")).compare
+    assert (spec.metric, spec.window) == ("max_abs", (0.2, 0.9))
+
+
 def test_reference_table_sets_the_largest_step(tmp_path):
     text = edit(VALID, "n_modes = 2", 'n_modes = 2\nh_max = 2e-4\nwhy = "the ripple study"')
     case = load_case(write(tmp_path, text, "good"))
@@ -174,8 +180,8 @@ BAD = [
     ("exudyn_newton_atol_without_why", lambda t: t + '[exudyn]\nnewton_atol = 1e-3\n', "exudyn.why"),
     ("exudyn_constraints_without_why", lambda t: t + '[exudyn]\nconstraints = "index2"\n', "exudyn.why"),
     ("growth_without_window", lambda t: t + GROWTH, "compare.motor_torques.window"),
-    ("window_without_growth",
-     lambda t: t + '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nwindow = [0.5, 1.0]\n',
+    ("window_with_final",
+     lambda t: t + '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nmetric = "final"\nwindow = [0.5, 1.0]\n',
      "compare.motor_torques.window"),
     ("window_reversed", lambda t: t + GROWTH + "window = [1.5, 0.5]\n", "compare.motor_torques.window"),
     ("window_not_a_pair", lambda t: t + GROWTH + "window = [0.5]\n", "compare.motor_torques.window"),

@@ -53,6 +53,34 @@ def test_max_abs_rms_final():
     assert err == pytest.approx(3e-3 / math.sqrt(5)) and c == 2 and math.isnan(t)
 
 
+def test_a_window_limits_max_abs_and_rms_to_its_samples():
+    """Samples outside [t0, t1] do not count; the worst sample inside is found and named;
+    a window without a sample is an error, not a silent zero."""
+    a = np.zeros((5, 6))
+    b = np.zeros((5, 6))
+    b[1, 2] = 3e-3  # t = 0.01 s: inside [0, 0.02]
+    b[3, 4] = 5e-2  # t = 0.03 s: a stop contact after the window
+    ref, other = make_run("reference", joint_angles=a), make_run("exudyn", joint_angles=b)
+    assert difference(ref, other, "joint_angles", "max_abs")[0] == pytest.approx(5e-2)
+    err, t, c = difference(ref, other, "joint_angles", "max_abs", window=(0.0, 0.02))
+    assert (err, t, c) == (pytest.approx(3e-3), pytest.approx(0.01), 2)
+    err, _, _ = difference(ref, other, "joint_angles", "rms", window=(0.0, 0.02))
+    assert err == pytest.approx(3e-3 / math.sqrt(3))
+    with pytest.raises(ValueError, match="no sample in the window"):
+        difference(ref, other, "joint_angles", "max_abs", window=(0.011, 0.019))
+
+
+def test_windowed_row_carries_its_window():
+    case = dataclasses.replace(load_case("release"),
+                               compare=(CompareSpec("joint_angles", 1e-2, "before the stop", window=(0.0, 0.02)),))
+    b = np.zeros((5, 6))
+    b[4, 0] = 1.0  # after the window
+    (row,) = check_runs(case, make_run("reference", joint_angles=np.zeros((5, 6))),
+                        make_run("exudyn", joint_angles=b))
+    assert row.passed and row.error == 0.0 and row.as_dict()["window"] == [0.0, 0.02]
+    assert row.metric_label == "max_abs [0, 0.02] s"
+
+
 def test_growth_rate_of_a_sampled_oscillation():
     """σ of e^{σt}·|sin(2π·92 t)| sampled at 10 Hz (the rotor mode in p1_rigid_gains' output):
     the block maxima recover σ; two runs with different σ differ by exactly that."""
