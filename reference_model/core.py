@@ -751,47 +751,46 @@ def elimination_order(nq, nm, mo):
 
 
 @njit(cache=True)
-def _spd_solve(M, B, order, first):
-    """M⁻¹ B for the symmetric positive definite mass matrix M: Cholesky L Lᵀ of M in the
-    elimination order of `elimination_order` (entries of L only inside the envelope), then
-    the two triangular solves, column by column."""
-    n = M.shape[0]
-    Lc = np.zeros((n, n))
-    for j in range(n):
-        oj = order[j]
-        fj = first[j]
-        d = M[oj, oj]
-        for k in range(fj, j):
-            d -= Lc[j, k] * Lc[j, k]
-        if d <= 0.0:
-            return np.full(B.shape, np.nan)  # not positive definite: the caller sees a non-finite state
-        Ljj = math.sqrt(d)
-        Lc[j, j] = Ljj
-        for r in range(j + 1, n):
-            fr = first[r]
-            if fr > j:
-                continue  # outside the envelope: L[r, j] = 0
-            s = M[order[r], oj]
-            for k in range(max(fr, fj), j):
+def _cholesky(A, order, first, Lc):
+    """Lc ← the Cholesky factor of the symmetric positive definite A in the elimination
+    order of `elimination_order`: Lc Lcᵀ = P A Pᵀ (row r of P A is row order[r] of A), row
+    by row, with entries only inside the envelope first[r] ≤ column ≤ r (the rest of Lc is
+    not touched).  False if A is not positive definite."""
+    n = A.shape[0]
+    for r in range(n):
+        o_r = order[r]
+        f_r = first[r]
+        for j in range(f_r, r + 1):
+            s = A[o_r, order[j]]
+            for k in range(max(f_r, first[j]), j):
                 s -= Lc[r, k] * Lc[j, k]
-            Lc[r, j] = s / Ljj
-    X = np.empty_like(B)
-    y = np.empty(n)
-    for col in range(B.shape[1]):
-        for r in range(n):  # L y = P b
-            s = B[order[r], col]
-            for c in range(first[r], r):
-                s -= Lc[r, c] * y[c]
-            y[r] = s / Lc[r, r]
-        for r in range(n - 1, -1, -1):  # Lᵀ z = y,  x = Pᵀ z
-            s = y[r]
-            for c in range(r + 1, n):
-                if first[c] <= r:
-                    s -= Lc[c, r] * y[c]
-            y[r] = s / Lc[r, r]
-        for r in range(n):
-            X[order[r], col] = y[r]
-    return X
+            if j < r:
+                Lc[r, j] = s / Lc[j, j]
+            elif s <= 0.0:
+                return False
+            else:
+                Lc[r, r] = math.sqrt(s)
+    return True
+
+
+@njit(cache=True)
+def _forward(Lc, first, b, order, y):
+    """y ← Lc⁻¹ P b (forward substitution inside the envelope)."""
+    for r in range(Lc.shape[0]):
+        s = b[order[r]]
+        for c in range(first[r], r):
+            s -= Lc[r, c] * y[c]
+        y[r] = s / Lc[r, r]
+
+
+@njit(cache=True)
+def _backward(Lc, first, y, order, x):
+    """x ← Pᵀ Lc⁻ᵀ y (back substitution, column by column of Lc; y is overwritten)."""
+    for r in range(Lc.shape[0] - 1, -1, -1):
+        z = y[r] / Lc[r, r]
+        for c in range(first[r], r):
+            y[c] -= Lc[r, c] * z
+        x[order[r]] = z
 
 
 @njit(cache=True)
@@ -800,21 +799,52 @@ def solve_constrained(Mg, f, G, Bs, m):
 
     With W = −Gᵀ (R_cl is the force on the target; the end effector feels −R_cl):
         R_cl = [G Mg⁻¹ W]⁻¹ [B* − G Mg⁻¹ f],     Ÿ = Mg⁻¹ (f + W R_cl).
+    With the envelope Cholesky P Mg Pᵀ = L Lᵀ (`_cholesky`), y = L⁻¹ P f and Z = L⁻¹ P Gᵀ:
+        G Mg⁻¹ Gᵀ = Zᵀ Z,   G Mg⁻¹ f = Zᵀ y,   Ÿ = Pᵀ L⁻ᵀ (y − Z R_cl),
+    one forward substitution per constraint row and a single back substitution; the small
+    system Zᵀ Z R_cl = Zᵀ y − B* is solved by its own (dense) Cholesky factor.
     """
     nc = G.shape[0]
     ny = Mg.shape[0]
-    rhs_ = np.zeros((ny, nc + 1))
-    rhs_[:, 0] = f
-    for r in range(nc):
-        rhs_[:, 1 + r] = G[r]
-    X = _spd_solve(Mg, rhs_, m.order, m.first)  # [Mg⁻¹ f, Mg⁻¹ Gᵀ]
-    if nc == 0:
-        return np.ascontiguousarray(X[:, 0]), np.zeros(0)
-    X0 = np.ascontiguousarray(X[:, 0])
-    XG = np.ascontiguousarray(X[:, 1:])
-    S = G @ XG  # G Mg⁻¹ Gᵀ  (= −G Mg⁻¹ W)
-    Rcl = np.linalg.solve(-S, Bs - G @ X0)
-    ydd = X0 - XG @ Rcl
+    Lc = np.empty((ny, ny))
+    ydd = np.empty(ny)
+    Rcl = np.empty(nc)
+    if not _cholesky(Mg, m.order, m.first, Lc):
+        ydd[:] = np.nan  # not positive definite: the caller sees a non-finite state
+        Rcl[:] = np.nan
+        return ydd, Rcl
+    y = np.empty(ny)
+    _forward(Lc, m.first, f, m.order, y)
+    if nc > 0:
+        Z = np.empty((nc, ny))  # row r: L⁻¹ P (row r of G)
+        S = np.empty((nc, nc))  # Zᵀ Z = G Mg⁻¹ Gᵀ
+        w = np.empty(nc)  # Zᵀ y − B* = G Mg⁻¹ f − B*
+        for r in range(nc):
+            _forward(Lc, m.first, G[r], m.order, Z[r])
+            for c in range(r + 1):
+                s = 0.0
+                for j in range(ny):
+                    s += Z[r, j] * Z[c, j]
+                S[r, c] = s
+                S[c, r] = s
+            s = -Bs[r]
+            for j in range(ny):
+                s += Z[r, j] * y[j]
+            w[r] = s
+        natural = np.arange(nc)  # S is dense: natural order, the whole lower triangle
+        full = np.zeros(nc, dtype=np.int64)
+        Ls = np.empty((nc, nc))
+        if not _cholesky(S, natural, full, Ls):
+            ydd[:] = np.nan  # the active constraints are dependent
+            Rcl[:] = np.nan
+            return ydd, Rcl
+        v = np.empty(nc)
+        _forward(Ls, full, w, natural, v)
+        _backward(Ls, full, v, natural, Rcl)
+        for r in range(nc):
+            for j in range(ny):
+                y[j] -= Z[r, j] * Rcl[r]
+    _backward(Lc, m.first, y, m.order, ydd)
     return ydd, Rcl
 
 
