@@ -3,7 +3,10 @@
 Read next to the paper (Sect. 2, Appendix) and docs/physics.md.  Everything here is a
 `numba.njit` function on arrays; `reference_model.build` builds the arrays and gives
 them names.  The model's constant arrays travel as one named tuple `ModelArrays`, the
-switching state (bases, grasps, held points) as `Switches`.
+switching state (bases, grasps, held points) as `Switches`.  A compiled call that is not
+inlined copies such a tuple and counts a reference to each of its arrays (17 atomic
+increments and decrements): the helpers of the right-hand side that take it are therefore
+`inline="always"` (half the cost of the rigid RHS).
 
 Coordinates (docs/physics.md §1)
 -------------------------------
@@ -205,7 +208,7 @@ def kinematics(q, qd, m, basis):
     return Kinematics(th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _slope(i, end_L, v, m, basis):
     """w_i'(0) (end_L False) or w_i'(L) (True) of link i for amplitudes (or rates) in v."""
     s = 0.0
@@ -215,7 +218,7 @@ def _slope(i, end_L, v, m, basis):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def joint_section_angles(q, qd, m, basis):
     """ψ_J and ψ̇_J of the six joints (docs/physics.md §3.3): the angle between the child's
     proximal end section and the parent's distal one (the base for the first joint),
@@ -232,7 +235,7 @@ def joint_section_angles(q, qd, m, basis):
     return psi, psid
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def wrist_angles(q, qd, XT, XTd, th, om, m, basis):
     """ψ_w and ψ̇_w of both wrists: target attitude relative to the distal end section of
     the terminal link, ψ_w = θ_T − (θ_3 + w_3'(L)) (docs/physics.md §4.3)."""
@@ -335,7 +338,7 @@ def momentum(x, m, sw):
 # =====================================================================================
 # One link in Newtonian coordinates, eq. (A.3)
 # =====================================================================================
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def link_newton(i, q, qd, th, om, m, basis):
     """Floating-frame mass matrix M_X and force V + elastic of link i (eq. A.3 for one body).
 
@@ -402,7 +405,7 @@ def link_newton(i, q, qd, th, om, m, basis):
     return M, V
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _gauss_point(i, b, g, q, c, s, R, m, rel):
     """Gauss point g of link i (basis b, frame angle with cosine c and sine s) relative to O,
     written into `rel`: R_i + A (x_g, w_g); returns its deflection w_g = φ(x_g)·a."""
@@ -415,7 +418,7 @@ def _gauss_point(i, b, g, q, c, s, R, m, rel):
     return wg
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _field_link(i, q, th, R, rO, aunif, m, basis, M):
     """Generalised force of the acceleration field on link i, over its distributed mass.
 
@@ -471,7 +474,7 @@ def links_tidal_potential(q, th, R, rO, m, basis):
 # =====================================================================================
 # The coupled system, eqs. (3)–(12), step by step
 # =====================================================================================
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _base_rows(Mg, f, q, rO, mB, aunif, u, sc):
     """Base rows of eq. (3): M = diag(m_B, m_B, J_B); thrust T A(θ_B) e_x through the COM,
     control torque u_B (eq. 4), the field felt in O's frame (docs/physics.md §5)."""
@@ -490,7 +493,7 @@ def _base_rows(Mg, f, q, rO, mB, aunif, u, sc):
         f[1] += sc[S_MU] * mB * gy
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _link_rows(Mg, f, q, qd, kin, rO, aunif, m, basis):
     """The links projected on q_m, eq. (A.6):  Jᵀ M J q̈ = Jᵀ (V + F_ext − M J̇ q̇).
 
@@ -540,7 +543,7 @@ def _link_rows(Mg, f, q, qd, kin, rO, aunif, m, basis):
                     Mg[cols[c], gr] += v
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _arm_columns(i, m):
     """Columns of q_m the Newtonian coordinates of link i depend on: the base (3), the joints
     of its arm up to it, the amplitudes of its arm's links up to it (its own last)."""
@@ -562,7 +565,7 @@ def _arm_columns(i, m):
     return cols
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _joint_rows(f, q, qd, thm, thmd, u, m, basis):
     """Joint springs and rotors, eqs. (5), (2) and the u_e of eq. (4).
 
@@ -594,7 +597,7 @@ def _joint_rows(f, q, qd, thm, thmd, u, m, basis):
     return uJ, thmdd
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _target_rows(Mg, f, XT, rO, aunif, nq, sc):
     """Target rows of eq. (3) (Newtonian, X_T): M = diag(m_T, m_T, J_T), the field."""
     Mg[nq, nq] = sc[S_MT]
@@ -608,7 +611,7 @@ def _target_rows(Mg, f, XT, rO, aunif, nq, sc):
         f[nq + 1] += sc[S_MU] * sc[S_MT] * gy
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _grasp_rows(f, q, qd, XT, XTd, kin, m, sw):
     """Wrist bistops and the grasp constraints of eqs. (8)–(12), for the active grasps.
 
