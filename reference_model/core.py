@@ -777,13 +777,17 @@ def _cholesky(A, order, first, Lc):
 
 
 @njit(cache=True)
-def _forward(Lc, first, b, order, y):
-    """y ← Lc⁻¹ P b (forward substitution inside the envelope)."""
+def _forward(Lc, first, Y):
+    """Y ← Lc⁻¹ Y (forward substitution inside the envelope), all columns of Y in one pass
+    over Lc; the rows of Y are already in the elimination order."""
+    nb = Y.shape[1]
     for r in range(Lc.shape[0]):
-        s = b[order[r]]
         for c in range(first[r], r):
-            s -= Lc[r, c] * y[c]
-        y[r] = s / Lc[r, r]
+            l_rc = Lc[r, c]
+            for col in range(nb):
+                Y[r, col] -= l_rc * Y[c, col]
+        for col in range(nb):
+            Y[r, col] /= Lc[r, r]
 
 
 @njit(cache=True)
@@ -804,36 +808,39 @@ def solve_constrained(Mg, f, G, Bs, m):
         R_cl = [G Mg⁻¹ W]⁻¹ [B* − G Mg⁻¹ f],     Ÿ = Mg⁻¹ (f + W R_cl).
     With the envelope Cholesky P Mg Pᵀ = L Lᵀ (`_cholesky`), y = L⁻¹ P f and Z = L⁻¹ P Gᵀ:
         G Mg⁻¹ Gᵀ = Zᵀ Z,   G Mg⁻¹ f = Zᵀ y,   Ÿ = Pᵀ L⁻ᵀ (y − Z R_cl),
-    one forward substitution per constraint row and a single back substitution; the small
-    system Zᵀ Z R_cl = Zᵀ y − B* is solved by its own (dense) Cholesky factor.
+    one forward substitution for [y, Z] and a single back substitution; the small system
+    Zᵀ Z R_cl = Zᵀ y − B* is solved by its own (dense) Cholesky factor.
     """
     nc = G.shape[0]
     ny = Mg.shape[0]
+    order = m.order
     Lc = np.empty((ny, ny))
     ydd = np.empty(ny)
     Rcl = np.empty(nc)
-    if not _cholesky(Mg, m.order, m.first, Lc):
+    if not _cholesky(Mg, order, m.first, Lc):
         ydd[:] = np.nan  # not positive definite: the caller sees a non-finite state
         Rcl[:] = np.nan
         return ydd, Rcl
-    y = np.empty(ny)
-    _forward(Lc, m.first, f, m.order, y)
+    Y = np.empty((ny, 1 + nc))  # [y, Z] = L⁻¹ P [f, Gᵀ]
+    for r in range(ny):
+        Y[r, 0] = f[order[r]]
+        for i in range(nc):
+            Y[r, 1 + i] = G[i, order[r]]
+    _forward(Lc, m.first, Y)
     if nc > 0:
-        Z = np.empty((nc, ny))  # row r: L⁻¹ P (row r of G)
         S = np.empty((nc, nc))  # Zᵀ Z = G Mg⁻¹ Gᵀ
-        w = np.empty(nc)  # Zᵀ y − B* = G Mg⁻¹ f − B*
-        for r in range(nc):
-            _forward(Lc, m.first, G[r], m.order, Z[r])
-            for c in range(r + 1):
+        w = np.empty((nc, 1))  # Zᵀ y − B* = G Mg⁻¹ f − B*
+        for i in range(nc):
+            for j in range(i + 1):
                 s = 0.0
-                for j in range(ny):
-                    s += Z[r, j] * Z[c, j]
-                S[r, c] = s
-                S[c, r] = s
-            s = -Bs[r]
-            for j in range(ny):
-                s += Z[r, j] * y[j]
-            w[r] = s
+                for r in range(ny):
+                    s += Y[r, 1 + i] * Y[r, 1 + j]
+                S[i, j] = s
+                S[j, i] = s
+            s = -Bs[i]
+            for r in range(ny):
+                s += Y[r, 1 + i] * Y[r, 0]
+            w[i, 0] = s
         natural = np.arange(nc)  # S is dense: natural order, the whole lower triangle
         full = np.zeros(nc, dtype=np.int64)
         Ls = np.empty((nc, nc))
@@ -841,13 +848,12 @@ def solve_constrained(Mg, f, G, Bs, m):
             ydd[:] = np.nan  # the active constraints are dependent
             Rcl[:] = np.nan
             return ydd, Rcl
-        v = np.empty(nc)
-        _forward(Ls, full, w, natural, v)
-        _backward(Ls, full, v, natural, Rcl)
-        for r in range(nc):
-            for j in range(ny):
-                y[j] -= Z[r, j] * Rcl[r]
-    _backward(Lc, m.first, y, m.order, ydd)
+        _forward(Ls, full, w)
+        _backward(Ls, full, w[:, 0], natural, Rcl)
+        for r in range(ny):
+            for i in range(nc):
+                Y[r, 0] -= Y[r, 1 + i] * Rcl[i]
+    _backward(Lc, m.first, Y[:, 0], order, ydd)
     return ydd, Rcl
 
 
