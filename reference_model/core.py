@@ -141,23 +141,26 @@ def kinematics(q, qd, m, basis):
         py = q[1] + my
         vx = qd[0] - wb * my
         vy = qd[1] + wb * mx
-        Jp = np.zeros((2, nq))
-        Jp[0, 0] = 1.0
-        Jp[1, 1] = 1.0
-        Jp[0, 2] = -my
-        Jp[1, 2] = mx
+        # the Jacobians are written in place: JR[i] and Jth[i] of the first link from the
+        # mount, of the next ones from the previous link's, JE[k] from the last link's
+        i0 = 3 * k
+        JR[i0, 0, 0] = 1.0
+        JR[i0, 1, 1] = 1.0
+        JR[i0, 0, 2] = -my
+        JR[i0, 1, 2] = mx
+        Jth[i0, 2] = 1.0
         cx = -wb * wb * mx
         cy = -wb * wb * my
-        Jt = np.zeros(nq)
-        Jt[2] = 1.0
         theta = q[2]
         for s in range(3):
-            i = 3 * k + s
+            i = i0 + s
             j = 3 + i
             b = basis[i]
             theta = theta + q[j]
-            Jt = Jt.copy()
-            Jt[j] = 1.0
+            if s > 0:
+                Jth[i] = Jth[i - 1]
+            Jth[i, j] = 1.0
+            Jt = Jth[i]
             omega = 0.0
             for c in range(nq):
                 omega += Jt[c] * qd[c]
@@ -167,8 +170,6 @@ def kinematics(q, qd, m, basis):
             R[i, 1] = py
             Rd[i, 0] = vx
             Rd[i, 1] = vy
-            JR[i] = Jp
-            Jth[i] = Jt
             cR[i, 0] = cx
             cR[i, 1] = cy
             # distal pin d = (L, w(L)) and its rate (0, ẇ(L))
@@ -183,7 +184,8 @@ def kinematics(q, qd, m, basis):
             dy = sn * L + c * wt
             eyx = -sn  # A e_y
             eyy = c
-            Jn = Jp.copy()
+            Jn = JR[i + 1] if s < 2 else JE[k]  # the distal pin's Jacobian
+            Jn[:, :] = JR[i]
             for col in range(nq):
                 Jn[0, col] += -dy * Jt[col]  # A S d = (−(A d)_y, (A d)_x)
                 Jn[1, col] += dx * Jt[col]
@@ -197,12 +199,10 @@ def kinematics(q, qd, m, basis):
             # −θ̇² A d + 2 θ̇ A S e_y ẇ(L),  A S e_y = −A e_x = (−c, −s)
             cx = cx - omega * omega * dx - 2.0 * omega * c * wtd
             cy = cy - omega * omega * dy - 2.0 * omega * sn * wtd
-            Jp = Jn
         rE[k, 0] = px
         rE[k, 1] = py
         rEd[k, 0] = vx
         rEd[k, 1] = vy
-        JE[k] = Jp
         cE[k, 0] = cx
         cE[k, 1] = cy
     return Kinematics(th, om, R, Rd, JR, Jth, cR, rE, rEd, JE, cE)
