@@ -297,6 +297,7 @@ def _environment() -> jinja2.Environment:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent),
                              autoescape=jinja2.select_autoescape(["html", "j2"]), trim_blocks=True, lstrip_blocks=True)
     env.filters["fmt"] = fmt
+    env.filters["metric"] = lambda row: metric_label(row.get("metric", ""), row.get("window"))
     env.filters["md"] = lambda s: jinja2.utils.markupsafe.Markup(_md(s))
     return env
 
