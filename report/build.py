@@ -100,6 +100,10 @@ def verdict_rows(verdict: dict) -> list[VerdictRow]:
             if r.get("at_switches"):
                 note += " — not compared at the constraint switches: " + ", ".join(
                     f"t = {a['time']:.6g} s ({fmt(a['error'])})" for a in r["at_switches"])
+            if r.get("between_events"):
+                note += (f" — not compared between the engines' instants of one event "
+                         f"(at most {fmt(r['event_skew'] * 1e3)} ms apart): " + ", ".join(
+                             f"t = {a['time']:.6g} s ({fmt(a['error'])})" for a in r["between_events"]))
             anchor = r["case"].replace("/", "-")
             rows.append(VerdictRow(kind, r["case"], r["observable"], metric_label(r.get("metric", ""), r.get("window")),
                                    r["error"], r["tolerance"],

@@ -225,4 +225,7 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
 
 
 def _detail(arm: int, info: dict[str, float]) -> str:
-    return " ".join([f"arm={arm}"] + [f"{k}={v:.6g}" for k, v in info.items()])
+    """'arm=2 gap_m=0.00139949 residual_m=0.00000 …': the arm identifies the event, the
+    measured values are written as real numbers ('#': always with a decimal point, so that an
+    exact 0 does not read as an identifying integer, `Event.identity`)."""
+    return " ".join([f"arm={arm}"] + [f"{k}={v:#.6g}" for k, v in info.items()])

@@ -154,6 +154,28 @@ class Event:
     kind: str
     detail: str = ""
 
+    @property
+    def identity(self) -> str:
+        """The detail without its measured values: 'arm=2 gap_m=0.00139951' → 'arm=2
+        gap_m'.  Which arm, which segment, which iteration (words and integers) identify an
+        event; the real numbers it reports (gaps, speeds, residuals, energy lost) are
+        results, printed to 6 digits, and round-off would flip their last digit: the
+        observables carry the same physics with tolerances.  A measured value is written
+        with a decimal point even when it is exactly zero ('residual_m=0.00000'), or it
+        would read as an integer that identifies the event."""
+        words = []
+        for token in self.detail.split():
+            key, sep, value = token.partition("=")
+            if sep and not value.lstrip("+-").isdigit():
+                try:
+                    float(value)
+                except ValueError:
+                    pass
+                else:
+                    token = key
+            words.append(token)
+        return " ".join(words)
+
 
 @dataclass(frozen=True)
 class Phase:

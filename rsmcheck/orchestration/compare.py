@@ -30,6 +30,18 @@ wave's transit — the two engines show the two one-sided limits of one quantity
 therefore leave out the samples at a switch, every other sample (the next one included)
 is compared, and the difference at the switch is reported on its own (`Check.at_switches`).
 
+*Samples between the engines' instants of one event.*  Some observables change definition
+at an event: `capture_gap_B` is measured to the designated point of the running segment
+(a new segment, a new point), a reaction force exists between a capture and a release.
+When the two engines reach the same event at instants a few control periods apart (a
+chained flight: each engine captures when its own hand reaches the point), a sample
+between the two instants compares two different quantities — in the full mission the
+regrasp segment starts 17 ms apart and the one sample between compares a 2 mm grasp offset
+with a 0.25 m approach gap.  `max_abs` and `rms` of the observables in `MODE_EVENTS` leave
+those samples out and report them (`Check.between_events`), provided the engines report the
+same sequence of those events and each pair of instants is at most `EVENT_SKEW_MAX` apart;
+otherwise every sample is compared, so a missing, extra or late event shows as a difference.
+
 **Relative differences** (`compare_runs`: rigid equivalence, convergence studies): the
 difference in units of the observable's size in the reference run,
 
@@ -62,6 +74,19 @@ from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf �
 #: the model class (module docstring), so that sample is reported and not compared
 MULTIPLIERS = ("reaction_forces_I",)
 CONSTRAINT_SWITCHES = ("capture", "release")
+
+#: observables whose definition changes at an event, and those events (module docstring)
+MODE_EVENTS: dict[str, tuple[str, ...]] = {
+    "capture_gap_B": ("segment", "capture", "release"),  # the designated point of the segment
+    "reaction_forces_I": CONSTRAINT_SWITCHES,  # a multiplier exists while its grasp is closed
+}
+#: largest difference [s] between the engines' instants of one event whose samples in between
+#: are left out of a `MODE_EVENTS` row.  A capture happens when the hand reaches its point,
+#: approaching at ~1 mm/s (rel_speed_mps at capture, 0.95e-3); engines whose hands differ by
+#: the ~2e-5 m their position rows allow reach it ~20 ms apart (measured: 17 ms in the full
+#: mission, 0 stand-alone, where both detect it at the same control sample).  0.1 s is five
+#: times that and one output period of the mission phases: a later event is a fault to see.
+EVENT_SKEW_MAX = 0.1
 
 #: number of equal blocks of the window whose maxima `growth_rate` fits
 GROWTH_BLOCKS = 10
@@ -140,6 +165,28 @@ def switch_samples(t: np.ndarray, *runs: EngineRun) -> np.ndarray:
     times = sorted({e.time for r in runs for e in r.events if e.kind in CONSTRAINT_SWITCHES})
     hits = [np.flatnonzero(np.abs(t - te) <= 1e-9 * max(1.0, abs(te))) for te in times]
     return np.unique(np.concatenate(hits)) if hits else np.zeros(0, int)
+
+
+def between_events(t: np.ndarray, reference: EngineRun, other: EngineRun,
+                   kinds: Sequence[str]) -> tuple[np.ndarray, float]:
+    """(indices of the samples `t` that lie between the two runs' instants of one event of
+    `kinds`, the largest such pair of instants apart [s]).  The runs' events of `kinds` are
+    paired in order by kind and `Event.identity`; when the two sequences differ nothing is
+    left out, nor between instants the same to 1e-9 s or more than `EVENT_SKEW_MAX` apart."""
+    ev_a = [e for e in reference.events if e.kind in kinds]
+    ev_b = [e for e in other.events if e.kind in kinds]
+    if [(e.kind, e.identity) for e in ev_a] != [(e.kind, e.identity) for e in ev_b]:
+        return np.zeros(0, int), 0.0
+    hits, skew = [], 0.0
+    for a, b in zip(ev_a, ev_b):
+        lo, hi = sorted((a.time, b.time))
+        if hi - lo <= 1e-9 * max(1.0, abs(hi)) or hi - lo > EVENT_SKEW_MAX:
+            continue
+        inside = np.flatnonzero((t >= lo - 1e-9) & (t <= hi + 1e-9))
+        if inside.size:
+            hits.append(inside)
+            skew = max(skew, hi - lo)
+    return (np.unique(np.concatenate(hits)) if hits else np.zeros(0, int)), skew
 
 
 def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = "max_abs",
@@ -225,6 +272,10 @@ class Check(_Verdict):
     growth_rates: Mapping[str, float] = field(default_factory=dict)
     #: (time, error) of the samples at a constraint switch, left out of the error (MULTIPLIERS)
     at_switches: tuple[tuple[float, float], ...] = ()
+    #: (time, error) of the samples between the engines' instants of one event, left out of
+    #: the error (MODE_EVENTS), and the largest such pair of instants apart [s]
+    between_events: tuple[tuple[float, float], ...] = ()
+    event_skew: float = 0.0
     #: a chained phase: the difference the engines carry into it, max_c |a_c(0) − b_c(0)|,
     #: already added to `tolerance` (see `check_runs`)
     inherited: float = 0.0
@@ -245,6 +296,9 @@ class Check(_Verdict):
             out["growth_rates"] = {k: _finite(v) for k, v in self.growth_rates.items()}
         if self.at_switches:
             out["at_switches"] = [{"time": ts, "error": _finite(e)} for ts, e in self.at_switches]
+        if self.between_events:
+            out["between_events"] = [{"time": ts, "error": _finite(e)} for ts, e in self.between_events]
+            out["event_skew"] = self.event_skew
         if self.inherited:
             out["inherited"] = _finite(self.inherited)
         if self.window is not None:
@@ -252,11 +306,16 @@ class Check(_Verdict):
         return out
 
     def switch_note(self) -> str:
-        """One line on the switch samples left out, or ''."""
-        if not self.at_switches:
-            return ""
-        at = ", ".join(f"t = {ts:.6g} s: {e:.3g}" for ts, e in self.at_switches)
-        return f"not compared at the constraint switch ({at}): one-sided limits, docs/physics.md §4.2"
+        """One line on the samples left out (at a switch, between events), or ''."""
+        notes = []
+        if self.at_switches:
+            at = ", ".join(f"t = {ts:.6g} s: {e:.3g}" for ts, e in self.at_switches)
+            notes.append(f"not compared at the constraint switch ({at}): one-sided limits, docs/physics.md §4.2")
+        if self.between_events:
+            at = ", ".join(f"t = {ts:.6g} s: {e:.3g}" for ts, e in self.between_events)
+            notes.append(f"not compared between the engines' instants of one event, at most "
+                         f"{self.event_skew * 1e3:.3g} ms apart ({at}): different quantities, docs/cases.md §6")
+        return "; ".join(notes)
 
 
 def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = False,
@@ -276,16 +335,24 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
     switches = switch_samples(t, reference, other)
     for spec in (case.compare if specs is None else specs):
         a, b = _pair(reference, other, spec.observable, t.size)
-        skip = switches if spec.observable in MULTIPLIERS and spec.metric in ("max_abs", "rms") else None
-        if skip is not None and not np.all(np.isfinite(a[skip] - b[skip])):
-            skip = None  # a blow-up at the switch is a failure, not a one-sided limit
+        sampled = spec.metric in ("max_abs", "rms")
+        at_switch = switches if spec.observable in MULTIPLIERS and sampled else np.zeros(0, int)
+        between, skew = (between_events(t, reference, other, MODE_EVENTS[spec.observable])
+                         if spec.observable in MODE_EVENTS and sampled else (np.zeros(0, int), 0.0))
+        between = np.setdiff1d(between, at_switch)
+        skip = np.union1d(at_switch, between).astype(int)
+        if not np.all(np.isfinite(a[skip] - b[skip])):
+            at_switch = between = skip = np.zeros(0, int)  # a blow-up there is a failure, not a limit
+            skew = 0.0
         err, tw, c = difference(reference, other, spec.observable, spec.metric, case.name, spec.window, skip)
         rates = ({"reference": growth_rate(t, b, spec.window), "other": growth_rate(t, a, spec.window)}
                  if spec.metric == "growth" else {})
-        at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in skip) if skip is not None else ()
+        at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in at_switch)
+        btw = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in between)
         d0 = float(np.max(np.abs(a[0] - b[0]))) if chained and spec.metric in ("max_abs", "rms") and t.size else 0.0
         rows.append(Check(case.name, spec.observable, err, float(spec.tolerance) + d0, spec.metric, spec.why,
-                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at, d0, spec.window))
+                          tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at, btw, skew, d0,
+                          spec.window))
     return rows
 
 

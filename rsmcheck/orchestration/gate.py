@@ -53,7 +53,7 @@ TOL_FACTOR = 10.0
 #: ... and at least REL_FLOOR × the observable's largest magnitude (+ ABS_FLOOR)
 REL_FLOOR = 1e-10
 ABS_FLOOR = 1e-14
-#: two events are the same when kind and identity (`event_identity`) agree and times
+#: two events are the same when kind and identity (`Event.identity`) agree and times
 #: within this [s]
 EVENT_TIME_TOL = 1e-9
 _TOL = "gate_tol."
@@ -240,28 +240,8 @@ def read_golden(path: Path, engine: str) -> Golden:
 # ---------------------------------------------------------------------------------------
 # comparing
 # ---------------------------------------------------------------------------------------
-def event_identity(detail: str) -> str:
-    """An event's detail without its measured values: 'arm=2 gap_m=0.00139951' → 'arm=2
-    gap_m'.  Which arm, which segment, which iteration (words and integers) identify an
-    event; the real numbers it reports (gaps, speeds, residuals, energy lost) are results,
-    printed to 6 digits, and round-off would flip their last digit: the observables carry
-    the same physics with tolerances."""
-    words = []
-    for token in detail.split():
-        key, sep, value = token.partition("=")
-        if sep and not value.lstrip("+-").isdigit():
-            try:
-                float(value)
-            except ValueError:
-                pass
-            else:
-                token = key
-        words.append(token)
-    return " ".join(words)
-
-
 def _events(run: EngineRun) -> list[tuple[str, str, float]]:
-    return [(e.kind, event_identity(e.detail), e.time) for e in run.events]
+    return [(e.kind, e.identity, e.time) for e in run.events]
 
 
 def compare_with_golden(case, run: EngineRun, golden: Golden) -> GateResult:

@@ -43,13 +43,15 @@ def test_failures_come_first_then_the_smallest_margin():
         {"case": "a", "observable": "x", "error": 1.0, "tolerance": 2.0, "margin": 2.0, "pass": True},
         {"case": "b", "observable": "y", "error": 3.0, "tolerance": 1.0, "margin": 1 / 3, "pass": False},
         {"case": "c", "observable": "z", "error": 1.0, "tolerance": 1.5, "margin": 1.5, "pass": True,
-         "at_switches": [{"time": 1.0, "error": 0.9}]}],
+         "at_switches": [{"time": 1.0, "error": 0.9}],
+         "between_events": [{"time": 2.5, "error": 0.247}], "event_skew": 0.017}],
         "gate": [{"case": "a", "engine": "exudyn", "unchanged": False, "largest_ratio": 2.4,
                   "moved": [{"observable": "energy", "ratio": 2.4}], "inputs_changed": [], "structure": []}]}
     rows = verdict_rows(doc)
     assert [(r.kind, r.case) for r in rows] == [("cross-check", "b"), ("gate", "a"), ("cross-check", "c"),
                                                 ("cross-check", "a")]
     assert "not compared at the constraint switches: t = 1 s (0.9)" in rows[2].note
+    assert "(at most 17 ms apart): t = 2.5 s (0.247)" in rows[2].note
     assert rows[1].margin == 1 / 2.4 and "energy 2.4×" in rows[1].note
 
 

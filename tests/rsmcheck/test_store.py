@@ -257,3 +257,12 @@ def test_git_commit_of_a_repository(tmp_path):
 def test_package_versions():
     versions = store.package_versions("numpy", "surely-not-a-package-xyz")
     assert versions == {"numpy": np.__version__, "surely-not-a-package-xyz": "not installed"}
+
+
+def test_event_identity_keeps_words_and_integers_and_drops_measured_values():
+    def ident(detail):
+        return Event(0.0, "capture", detail).identity
+    assert ident("arm=2 delta_rad=-5.95e-08 gap_m=0.0014") == "arm=2 delta_rad gap_m"
+    assert ident("iteration=3 com_y=-4.1e-3 step=1e+00") == "iteration=3 com_y step"
+    assert ident("approach") == "approach"
+    assert ident("arm=1 segment=hold") == "arm=1 segment=hold"

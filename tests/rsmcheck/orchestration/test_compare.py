@@ -212,6 +212,55 @@ def test_multiplier_blowing_up_at_a_switch_is_not_left_out():
     assert forces.error == math.inf and not forces.passed and forces.at_switches == ()
 
 
+def _regrasp(ref_start: float, exu_start: float, exu_events: tuple[str, ...] = ("regrasp",)):
+    """capture_gap_B of two runs sampled every 0.1 s that enter a segment 'regrasp' (a new
+    designated point: the gap jumps from the 2 mm grasp offset to 0.25 m) at `ref_start`
+    and `exu_start`; `exu_events`: the segments the other engine reports."""
+    t = np.arange(6) * 0.1
+
+    def gap(t0):
+        return np.where(t[:, None] >= t0, [[-0.25, 0.0]], [[-0.002, 0.0]])
+
+    case = dataclasses.replace(load_case("p2_capture_regrasp"), compare=(
+        CompareSpec("capture_gap_B", 1e-5, "gap"), CompareSpec("ee1_pos_B", 1e-6, "hand")))
+    ref = make_run("reference", n=6, capture_gap_B=gap(ref_start))
+    exu = make_run("exudyn", n=6, capture_gap_B=gap(exu_start))
+    ref.events.append(Event(ref_start, "segment", "regrasp"))
+    exu.events.extend(Event(exu_start, "segment", name) for name in exu_events)
+    for r in (ref, exu):
+        r.observables["time"] = t
+    return {r.observable: r for r in check_runs(case, ref, exu)}
+
+
+def test_samples_between_the_engines_instants_of_one_event_are_reported_not_compared():
+    """The chained full mission: the regrasp segment starts 17 ms apart in the two engines,
+    and the one sample between compares a grasp offset with an approach gap (docs/cases.md §6)."""
+    rows = _regrasp(0.294, 0.311)
+    gap = rows["capture_gap_B"]
+    assert gap.passed and gap.error == 0.0
+    assert gap.between_events == ((pytest.approx(0.3), pytest.approx(0.248)),)
+    assert gap.event_skew == pytest.approx(0.017)
+    assert "at most 17 ms apart (t = 0.3 s: 0.248)" in gap.switch_note()
+    doc = json.loads(json.dumps(gap.as_dict()))
+    assert doc["between_events"] == [{"time": pytest.approx(0.3), "error": pytest.approx(0.248)}]
+    assert rows["ee1_pos_B"].between_events == ()  # only observables defined by the segment
+
+
+@pytest.mark.parametrize("exu_start, exu_events", [
+    (0.411, ("regrasp",)),  # 117 ms after the reference: later than EVENT_SKEW_MAX
+    (0.311, ("regrasp", "hold")),  # a segment the reference never entered
+    (0.311, ("retreat",)),  # another segment
+])
+def test_a_late_or_different_event_is_compared(exu_start, exu_events):
+    gap = _regrasp(0.294, exu_start, exu_events)["capture_gap_B"]
+    assert not gap.passed and gap.error == pytest.approx(0.248) and gap.between_events == ()
+
+
+def test_the_same_instant_leaves_nothing_out():
+    gap = _regrasp(0.3, 0.3)["capture_gap_B"]
+    assert gap.passed and gap.between_events == () and gap.event_skew == 0.0
+
+
 def test_relative_differences_use_the_floors():
     ref = make_run("reference", reaction_forces_I=np.zeros((5, 4)), energy=np.full((5, 3), 10.0))
     exu = make_run("exudyn", reaction_forces_I=np.full((5, 4), 1e-4), energy=np.full((5, 3), 10.001))
