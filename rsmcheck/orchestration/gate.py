@@ -262,7 +262,11 @@ def compare_with_golden(case, run: EngineRun, golden: Golden) -> GateResult:
         return res
     ev_new, ev_old = _events(run), _events(golden.run)
     if [e[:2] for e in ev_new] != [e[:2] for e in ev_old]:
-        res.structure.append(f"events: {[e[0] for e in ev_old]} → {[e[0] for e in ev_new]}")
+        if [e[0] for e in ev_new] != [e[0] for e in ev_old]:
+            res.structure.append(f"events: {[e[0] for e in ev_old]} → {[e[0] for e in ev_new]}")
+        else:  # the same kinds: say which event's identity changed
+            (kind, new, t1), (_, old, _) = next((a, b) for a, b in zip(ev_new, ev_old) if a[1] != b[1])
+            res.structure.append(f"event '{kind}' at {t1:.9g} s: '{old}' → '{new}'")
     else:
         for (kind, _, t1), (_, _, t0) in zip(ev_new, ev_old):
             if abs(t1 - t0) > EVENT_TIME_TOL:

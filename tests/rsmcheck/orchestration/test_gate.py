@@ -129,6 +129,9 @@ def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
     for other in (dataclasses.replace(capture, detail="arm=1 impact_loss_J=5.83965e-05 gap_m=0.00139951"),
                   dataclasses.replace(capture, time=0.501), dataclasses.replace(capture, kind="release")):
         assert compare_with_golden(case, dataclasses.replace(nominal, events=[other]), g_capture).structure
+    arm1 = dataclasses.replace(capture, detail="arm=1 impact_loss_J=5.83965e-05 gap_m=0.00139951")
+    assert compare_with_golden(case, dataclasses.replace(nominal, events=[arm1]), g_capture).structure == [
+        "event 'capture' at 0.5 s: 'arm=2 impact_loss_J gap_m' → 'arm=1 impact_loss_J gap_m'"]
 
 
 def test_bad_goldens_are_input_errors(tiny, tiny_runs, tmp_path):
