@@ -339,7 +339,11 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
         at_switch = switches if spec.observable in MULTIPLIERS and sampled else np.zeros(0, int)
         between, skew = (between_events(t, reference, other, MODE_EVENTS[spec.observable])
                          if spec.observable in MODE_EVENTS and sampled else (np.zeros(0, int), 0.0))
+        if spec.window is not None:  # only what the row looks at is left out, or listed
+            inside = np.flatnonzero((t >= spec.window[0] - 1e-9) & (t <= spec.window[1] + 1e-9))
+            at_switch, between = np.intersect1d(at_switch, inside), np.intersect1d(between, inside)
         between = np.setdiff1d(between, at_switch)
+        skew = skew if between.size else 0.0
         skip = np.union1d(at_switch, between).astype(int)
         if not np.all(np.isfinite(a[skip] - b[skip])):
             at_switch = between = skip = np.zeros(0, int)  # a blow-up there is a failure, not a limit

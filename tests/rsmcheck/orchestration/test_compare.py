@@ -216,20 +216,25 @@ def _regrasp(ref_start: float, exu_start: float, exu_events: tuple[str, ...] = (
     """capture_gap_B of two runs sampled every 0.1 s that enter a segment 'regrasp' (a new
     designated point: the gap jumps from the 2 mm grasp offset to 0.25 m) at `ref_start`
     and `exu_start`; `exu_events`: the segments the other engine reports."""
+    case = dataclasses.replace(load_case("p2_capture_regrasp"), compare=(
+        CompareSpec("capture_gap_B", 1e-5, "gap"), CompareSpec("ee1_pos_B", 1e-6, "hand")))
+    ref, exu = _regrasp_runs(ref_start, exu_start, exu_events)
+    return {r.observable: r for r in check_runs(case, ref, exu)}
+
+
+def _regrasp_runs(ref_start: float, exu_start: float, exu_events: tuple[str, ...] = ("regrasp",)):
     t = np.arange(6) * 0.1
 
     def gap(t0):
         return np.where(t[:, None] >= t0, [[-0.25, 0.0]], [[-0.002, 0.0]])
 
-    case = dataclasses.replace(load_case("p2_capture_regrasp"), compare=(
-        CompareSpec("capture_gap_B", 1e-5, "gap"), CompareSpec("ee1_pos_B", 1e-6, "hand")))
     ref = make_run("reference", n=6, capture_gap_B=gap(ref_start))
     exu = make_run("exudyn", n=6, capture_gap_B=gap(exu_start))
     ref.events.append(Event(ref_start, "segment", "regrasp"))
     exu.events.extend(Event(exu_start, "segment", name) for name in exu_events)
     for r in (ref, exu):
         r.observables["time"] = t
-    return {r.observable: r for r in check_runs(case, ref, exu)}
+    return ref, exu
 
 
 def test_samples_between_the_engines_instants_of_one_event_are_reported_not_compared():
@@ -254,6 +259,16 @@ def test_samples_between_the_engines_instants_of_one_event_are_reported_not_comp
 def test_a_late_or_different_event_is_compared(exu_start, exu_events):
     gap = _regrasp(0.294, exu_start, exu_events)["capture_gap_B"]
     assert not gap.passed and gap.error == pytest.approx(0.248) and gap.between_events == ()
+
+
+def test_samples_outside_a_window_are_neither_left_out_nor_listed():
+    rows = _regrasp(0.294, 0.311)
+    case = dataclasses.replace(load_case("p2_capture_regrasp"), compare=(
+        CompareSpec("capture_gap_B", 1e-5, "gap", window=(0.0, 0.2)),))
+    ref, exu = _regrasp_runs(0.294, 0.311)
+    gap = check_runs(case, ref, exu)[0]
+    assert gap.passed and gap.between_events == () and gap.event_skew == 0.0
+    assert rows["capture_gap_B"].between_events  # the same runs without the window
 
 
 def test_the_same_instant_leaves_nothing_out():
