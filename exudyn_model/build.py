@@ -314,6 +314,7 @@ class BuildMixin:
         ti.newton.relativeTolerance = self.newton_rtol
         ti.newton.absoluteTolerance = self.newton_atol
         ti.newton.useModifiedNewton = True
+        ti.newton.modifiedNewtonJacUpdatePerStep = self.jacobian_per_step
         ti.adaptiveStep = True
         ti.verboseMode = 0
         ti.reuseConstantMassMatrix = not self.field  # the base loses propellant under thrust

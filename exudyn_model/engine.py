@@ -76,6 +76,11 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
       restart_threshold  input jump (fraction of its limit) that restarts the integrator
       newton_atol     absolute Newton tolerance [N] (default: the case's [exudyn] table, else
                       1000·ε·EA for flexible links, 1e-10 N for rigid ones)
+      jacobian_per_step  a new Newton Jacobian at the start of every step (Exudyn's
+                      modifiedNewtonJacUpdatePerStep; default: the case's [exudyn] table, else
+                      False: modified Newton keeps it across steps).  Modified Newton stops
+                      just below newton_atol, and the torque of that residual about the origin
+                      drifts the angular momentum by ~h·wᵀr per step (docs/exudyn.md §8)
       start           the end state of a previous run this run continues from
                       (rsmcheck.initial.StartState), None: the case's [initial]
     """
@@ -85,7 +90,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
     def __init__(self, case: Case, params: Params | None = None, rigid: bool = False,
                  n_elements: int | None = None, substeps: int | None = None,
                  spectral_radius: float = SPECTRAL_RADIUS_DEFAULT, newton_rtol: float = NEWTON_RTOL_DEFAULT,
-                 newton_atol: float | None = None,
+                 newton_atol: float | None = None, jacobian_per_step: bool | None = None,
                  field: bool | None = None, restart_on_input_change: bool = True,
                  stepping: str = "continuous", constraints: str | None = None, axial_damping: float = 1.0,
                  restart_threshold: float | None = None, start: StartState | None = None):
@@ -102,6 +107,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.newton_atol = float(NEWTON_ATOL_RIGID if newton_atol is None and self.rigid else
                                  first_given(newton_atol, given.newton_atol,
                                              NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
+        self.jacobian_per_step = bool(first_given(jacobian_per_step, given.jacobian_per_step, False))
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)
@@ -162,7 +168,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         return {"integrator": "Exudyn generalized-alpha, index 3, fixed step",
                 "step": self.dt / self.substeps, "substeps": self.substeps,
                 "spectral_radius": self.spectral_radius, "newton_rtol": self.newton_rtol, "newton_atol": self.newton_atol,
-                "control_period": self.dt,
+                "jacobian_per_step": self.jacobian_per_step, "control_period": self.dt,
                 "links": "rigid bodies" if self.rigid else f"ANCFCable2D x {self.n_elements}",
                 "steps": self.stats["steps"], "newton_iterations": self.stats["newton_iterations"],
                 "jacobians": self.stats["jacobians"], "restarts": self.stats["restarts"],

@@ -193,6 +193,7 @@ class ExudynSettings(_EngineSettings):
     constraints: str | None = None  # "index3" | "index2"
     restart_threshold: float | None = None  # input jump (fraction of its limit) restarting
     newton_atol: float | None = None  # absolute Newton tolerance [N]
+    jacobian_per_step: bool | None = None  # a new Newton Jacobian at every step
     why: str = ""
 
 
@@ -879,7 +880,9 @@ def _exudyn(w: str, key: str, v: Any) -> ExudynSettings:
         "constraints": lambda k, x: _choice(w, k, x, ("index3", "index2")),
         "restart_threshold": lambda k, x: _number(w, k, x, 0.0, hi=1.0),
         "newton_atol": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
-    }, needs_why=("substeps", "n_elements", "constraints", "restart_threshold", "newton_atol"))
+        "jacobian_per_step": lambda k, x: _flag(w, k, x),
+    }, needs_why=("substeps", "n_elements", "constraints", "restart_threshold", "newton_atol",
+                  "jacobian_per_step"))
     return ExudynSettings(**t)
 
 
