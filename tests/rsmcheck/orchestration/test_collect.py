@@ -84,6 +84,11 @@ def test_every_phase_has_its_rows_and_the_sequence_replaces_only_its_own():
     specs = {s.observable: s for s in phase_specs(mission, True, p3)}
     assert specs["motor_torques"].tolerance == 0.04  # cases/mission.toml [short_compare]
     assert specs["com_pos_B"] == next(s for s in p3.compare if s.observable == "com_pos_B")
+    # the full flight has its own replaced rows ([compare.PHASE.OBSERVABLE], docs/cases.md §6)
+    p4 = load_case("p4_hohmann").variant(False)
+    full = {s.observable: s for s in phase_specs(mission, False, p4)}
+    assert full["altitude"].tolerance == 6.0 and "quarter orbit" in full["altitude"].why
+    assert [s.observable for s in phase_specs(mission, False, p4)] == [s.observable for s in p4.compare]
 
 
 def test_a_sequence_may_only_replace_rows_of_its_phases(tmp_path):
