@@ -167,6 +167,11 @@ def switch_samples(t: np.ndarray, *runs: EngineRun) -> np.ndarray:
     return np.unique(np.concatenate(hits)) if hits else np.zeros(0, int)
 
 
+def in_window(t: np.ndarray, window: Sequence[float]) -> np.ndarray:
+    """Mask of the samples t0 ≤ t ≤ t1 of `window` (closed, to 1e-9 s)."""
+    return (t >= window[0] - 1e-9) & (t <= window[1] + 1e-9)
+
+
 def between_events(t: np.ndarray, reference: EngineRun, other: EngineRun,
                    kinds: Sequence[str]) -> tuple[np.ndarray, float]:
     """(indices of the samples `t` that lie between the two runs' instants of one event of
@@ -203,7 +208,7 @@ def difference(reference: EngineRun, other: EngineRun, name: str, metric: str = 
         if skip is not None and len(skip):
             keep[np.asarray(skip, int)] = False
         if window is not None:
-            keep &= (t >= window[0] - 1e-9) & (t <= window[1] + 1e-9)
+            keep &= in_window(t, window)
             if not np.any(keep):
                 raise ValueError(f"{case}: {name}: no sample in the window [{window[0]}, {window[1]}] s")
         t, a, b = t[keep], a[keep], b[keep]
@@ -340,7 +345,7 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
         between, skew = (between_events(t, reference, other, MODE_EVENTS[spec.observable])
                          if spec.observable in MODE_EVENTS and sampled else (np.zeros(0, int), 0.0))
         if spec.window is not None:  # only what the row looks at is left out, or listed
-            inside = np.flatnonzero((t >= spec.window[0] - 1e-9) & (t <= spec.window[1] + 1e-9))
+            inside = np.flatnonzero(in_window(t, spec.window))
             at_switch, between = np.intersect1d(at_switch, inside), np.intersect1d(between, inside)
         between = np.setdiff1d(between, at_switch)
         skew = skew if between.size else 0.0
@@ -353,7 +358,7 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
                  if spec.metric == "growth" else {})
         at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in at_switch)
         btw = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in between)
-        d0 = float(np.max(np.abs(a[0] - b[0]))) if chained and spec.metric in ("max_abs", "rms") and t.size else 0.0
+        d0 = float(np.max(np.abs(a[0] - b[0]))) if chained and sampled and t.size else 0.0
         rows.append(Check(case.name, spec.observable, err, float(spec.tolerance) + d0, spec.metric, spec.why,
                           tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at, btw, skew, d0,
                           spec.window))
