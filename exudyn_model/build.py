@@ -284,12 +284,17 @@ class BuildMixin:
         self.mass_ancf = self.mesh.mass_matrix()
         self.pos_mid = self.mesh.pos_matrix(0.5 * L)
         self._rigid_gauss = links.gauss(8, -0.5 * L, 0.5 * L)  # a rigid link's field points
-        # the tidal field's quadrature on the flexible links, all links in one product
+        # the tidal field's quadrature on the flexible links (field.tidal_link_forces)
         self._flex = [i for i, it in enumerate(self.links) if not it.rigid]
         self._flex_coords = np.array([self.links[i].coords for i in self._flex], dtype=np.int64).reshape(
             len(self._flex), self.mesh.nq)
-        _, ws_flex, self._field_D = self.mesh.sample(N_GAUSS_FIELD)
+        _, ws_flex, D = self.mesh.sample(N_GAUSS_FIELD)  # rows x_g, y_g of every Gauss point
         self._field_weights = self.params.link.rho_a * ws_flex  # ρA w_g [kg]
+        # D by its non-zero entries per row (a point of an element: 4 of the link's coordinates)
+        width = int(np.max(np.count_nonzero(D, axis=1)))
+        cols = np.argsort(D == 0.0, axis=1, kind="stable")[:, :width]
+        self._field_S = (np.ascontiguousarray(cols), np.ascontiguousarray(np.take_along_axis(D, cols, axis=1)))
+        self._field_points = np.array([self.i_base[:2], self.i_target[:2]], dtype=np.int64)
         self._n_carrier = sum(3 if it.rigid else len(it.coords) for it in self.links) + 6
         self._uniform: tuple[float, np.ndarray] | None = None  # (base mass, U) of the last build
         # ∫ρ r dξ of every link as one matrix on the stacked link coordinates

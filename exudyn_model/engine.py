@@ -134,7 +134,8 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.capture_arm = case.capture.arm
         self.capture_point = np.asarray(p.geometry.grasp_T(case.capture.arm), float)
         self._held: tuple | None = None
-        self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0, "newton_retries": 0}
+        self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0, "newton_retries": 0,
+                      "wall_integrator_s": 0.0}  # s waiting on Exudyn's solver (rsmcheck bench)
         self._restart_pending = False
         self.start_label = "initial" if start is None else "rigid end state"
         self._base_start = (np.asarray(init.base_pose, float), np.asarray(init.base_rate, float))
@@ -173,6 +174,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                 "steps": self.stats["steps"], "newton_iterations": self.stats["newton_iterations"],
                 "jacobians": self.stats["jacobians"], "restarts": self.stats["restarts"],
                 "newton_retries": self.stats["newton_retries"],
+                "wall_integrator_s": self.stats["wall_integrator_s"],
                 "stepping": self.stepping, "constraints": self.constraints,
                 "axial_damping": self.axial_damping,
                 "restart_threshold": self.restart_threshold, "start": self.start_label}

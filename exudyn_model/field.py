@@ -31,6 +31,7 @@ import math
 import sys
 
 import numpy as np
+from numba import njit
 
 sys.exudynFast = True  # the engine's build: import order must not matter
 # exudyn announces the fast build on stdout: keep it out of `--json` output
@@ -47,6 +48,58 @@ def tidal(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
     q = (2.0 * rho @ r_o + np.sum(rho * rho, axis=-1)) / r2
     f = -np.expm1(-1.5 * np.log1p(q))
     return mu * (f[..., None] * (r_o + rho) - rho) / (r2 * np.sqrt(r2))
+
+
+@njit(cache=True, inline="always")
+def _tidal_at(px, py, rx, ry, r2):  # pragma: no cover - compiled
+    """Δg · |r_O|³/μ at one point ρ = (px, py) (`tidal`, on floats)."""
+    qq = (2.0 * (px * rx + py * ry) + px * px + py * py) / r2
+    f = -math.expm1(-1.5 * math.log1p(qq))
+    return f * (rx + px) - px, f * (ry + py) - py
+
+
+@njit(cache=True)
+def tidal_point_forces(points, masses, r_o, mu):  # pragma: no cover - compiled
+    """m_k Δg(ρ_k) for point masses at `points` (rows) [N]: base and target at their COM."""
+    rx, ry = r_o[0], r_o[1]
+    r2 = rx * rx + ry * ry
+    scale = mu / (r2 * math.sqrt(r2))
+    out = np.empty(points.shape)
+    for k in range(points.shape[0]):
+        gx, gy = _tidal_at(points[k, 0], points[k, 1], rx, ry, r2)
+        out[k, 0] = masses[k] * scale * gx
+        out[k, 1] = masses[k] * scale * gy
+    return out
+
+
+@njit(cache=True)
+def tidal_link_forces(q_links, cols, vals, weights, r_o, mu):  # pragma: no cover - compiled
+    """Generalised forces of the tidal field on every flexible link, one row per link
+    (`q_links`: the links' coordinates, a row each).  A link's Gauss points are
+    r_g = S(ξ_g) q, rows 2g (x) and 2g+1 (y) of S given by their non-zero entries (`cols`,
+    `vals`: an ANCF position depends on 4 coordinates), and its forces
+    Σ_g S(ξ_g)ᵀ ρA w_g Δg(r_g) (`weights` = ρA w_g), Δg as in `tidal`, point by point
+    (called every control sample: compiled, no temporaries)."""
+    n_links = q_links.shape[0]
+    n_g = weights.shape[0]
+    rx, ry = r_o[0], r_o[1]
+    r2 = rx * rx + ry * ry
+    scale = mu / (r2 * math.sqrt(r2))
+    out = np.zeros(q_links.shape)
+    for i in range(n_links):
+        for g in range(n_g):
+            px = 0.0
+            py = 0.0
+            for j in range(cols.shape[1]):
+                px += vals[2 * g, j] * q_links[i, cols[2 * g, j]]
+                py += vals[2 * g + 1, j] * q_links[i, cols[2 * g + 1, j]]
+            gx, gy = _tidal_at(px, py, rx, ry, r2)
+            gx *= weights[g] * scale
+            gy *= weights[g] * scale
+            for j in range(cols.shape[1]):
+                out[i, cols[2 * g, j]] += vals[2 * g, j] * gx
+                out[i, cols[2 * g + 1, j]] += vals[2 * g + 1, j] * gy
+    return out
 
 
 def tidal_potential(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -111,42 +164,28 @@ class FieldMixin:
 
     def _tidal_forces(self, q, r_O: np.ndarray) -> np.ndarray:
         """Generalised forces of the exact tidal field at the positions q about the orbit
-        point r_O (zero without an orbit), carrier coordinates.  One evaluation of the field
-        for every point (base, target, the Gauss points of all links), then distributed on
-        each body's coordinates: a flexible link's points are r_g = S(ξ_g) q_i and its forces
-        Σ_g S(ξ_g)ᵀ ρA w_g Δg_g, the same S for every link (one mesh), so all links go through
-        one product each way."""
+        point r_O (zero without an orbit), carrier coordinates: base and target at their COM,
+        a flexible link over its Gauss points (r_g = S(ξ_g) q_i, forces Σ_g S(ξ_g)ᵀ ρA w_g
+        Δg_g, `tidal_link_forces`, the same S for every link: one mesh), a rigid link over
+        its own Gauss points with the moment about its centre."""
         if not self.orbit:
             return np.zeros(self._n_carrier)
         p = self.params
         mu = p.orbit.mu
-        D = self._field_D  # (2 n_g) × n_coords: rows x_g, y_g of every Gauss point
-        n_g = D.shape[0] // 2
-        flex_points = (q[self._flex_coords] @ D.T).reshape(-1, 2)  # link after link
+        r_O = np.asarray(r_O, float)
+        cols, vals = self._field_S
+        q_flex = iter(tidal_link_forces(q[self._flex_coords], cols, vals, self._field_weights, r_O, mu))
         xs_rigid, ws_rigid = self._rigid_gauss
-        rigid_points = []
-        for it in self.links:
-            if it.rigid:
-                qi = q[it.coords]
-                rigid_points.append(qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])]))
-        g = tidal(mu, r_O, np.vstack([q[self.i_base[:2]][None, :], q[self.i_target[:2]][None, :],
-                                      flex_points, *rigid_points]))
-        n_flex = len(self._flex)
-        g_flex = g[2:2 + n_flex * n_g].reshape(n_flex, n_g, 2)
-        # Σ_g Sᵀ(ξ_g) f_g: point forces at the Gauss points on each link's coordinates
-        q_flex = (g_flex * self._field_weights[None, :, None]).reshape(n_flex, 2 * n_g) @ D
-        out = [np.array([self._mass_base() * g[0, 0], self._mass_base() * g[0, 1], 0.0]),
-               np.array([p.target.mass * g[1, 0], p.target.mass * g[1, 1], 0.0])]
-        flex_rows, rigid_pts = iter(q_flex), iter(rigid_points)
-        k = 2 + n_flex * n_g
+        f_bt = tidal_point_forces(q[self._field_points], np.array([self._mass_base(), p.target.mass]), r_O, mu)
+        out = [np.array([f_bt[0, 0], f_bt[0, 1], 0.0]), np.array([f_bt[1, 0], f_bt[1, 1], 0.0])]
         for it in self.links:
             if not it.rigid:
-                out.append(next(flex_rows))
+                out.append(next(q_flex))
                 continue
-            pts = next(rigid_pts)
-            f = p.link.rho_a * ws_rigid[:, None] * g[k:k + len(pts)]
-            k += len(pts)
-            lever = pts - q[it.coords][:2]
+            qi = q[it.coords]
+            pts = qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])])
+            f = p.link.rho_a * ws_rigid[:, None] * tidal(mu, r_O, pts)
+            lever = pts - qi[:2]
             out.append(np.array([f[:, 0].sum(), f[:, 1].sum(), np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
         return np.concatenate(out)
 

@@ -68,6 +68,7 @@ class ReferenceEngine(SteppingMixin):
         self.h = 1e-4
         self.steps = 0
         self.rejected = 0
+        self.integrator_wall = 0.0  # s inside the compiled integrator (rsmcheck bench)
         self.atol = self._atol()
         n = self.model.layout.nx
         # TR-BDF2 iteration matrix, kept between control periods (stepping.py, trbdf2.integrate_trbdf2)
@@ -148,7 +149,8 @@ class ReferenceEngine(SteppingMixin):
                 "control_period": self.case.solver.control_period,
                 "n_modes": ",".join(str(n) for n in self.model.n_eigen),
                 "static_modes": int(self.model.static_modes),
-                "steps": self.steps, "rejected_steps": self.rejected}
+                "steps": self.steps, "rejected_steps": self.rejected,
+                "wall_integrator_s": self.integrator_wall}
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "numpy", "numba", "scipy")

@@ -41,7 +41,7 @@ ATOL_SCALE = {
 
 class SteppingMixin:
     """`ReferenceEngine`'s stepping: reads model, cfg, rtol, integrator, h_max; advances
-    x, t, h and the step counters; owns the TR-BDF2 iteration matrix (_jac, _minv, _work)."""
+    x, t, h, the step counters and the integrator's wall time; owns the TR-BDF2 iteration matrix (_jac, _minv, _work)."""
 
     def _atol(self) -> np.ndarray:
         lay = self.model.layout
@@ -66,6 +66,7 @@ class SteppingMixin:
     def _advance(self, t_next: float, inputs: Inputs) -> None:
         args = self.model.core_args(self.cfg)
         u = self.u_vector(inputs)
+        tic = time.perf_counter()
         if self.integrator == "dopri5":
             x, h, nacc, nrej, status = integrate_dopri5(
                 self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, u, *args)
@@ -73,6 +74,7 @@ class SteppingMixin:
             x, h, nacc, nrej, status = integrate_trbdf2(
                 self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, self._jac,
                 self._minv, self._work, u, *args)
+        self.integrator_wall += time.perf_counter() - tic
         self.steps += nacc
         self.rejected += nrej
         if status != 0 or not np.all(np.isfinite(x)):

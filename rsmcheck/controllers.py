@@ -63,23 +63,25 @@ class ArmModel:
     def __init__(self, params: Params, arm: int):
         self.arm = arm
         self.mount = np.asarray(params.geometry.mount_B(arm), float)
+        self.mount_x, self.mount_y = float(self.mount[0]), float(self.mount[1])
         self.length = params.link.length
 
-    def _pins(self, q) -> list[tuple[float, float]]:
-        """The four pins as (x, y) floats (plain arithmetic: called every control sample)."""
-        return arm_pins(float(self.mount[0]), float(self.mount[1]), 0.0, self.length, q)
+    def pins_list(self, q) -> list[tuple[float, float]]:
+        """The four pins (mount, elbows, end effector) as (x, y) floats, base frame (plain
+        arithmetic: called every control sample)."""
+        return arm_pins(self.mount_x, self.mount_y, 0.0, self.length, q)
 
     def pins(self, q) -> np.ndarray:
-        """The four pins (mount, elbows, end effector), base frame, rows."""
-        return np.array(self._pins(q))
+        """The four pins, base frame, rows."""
+        return np.array(self.pins_list(q))
 
     def pose(self, q) -> np.ndarray:
-        x, y = self._pins(q)[3]
+        x, y = self.pins_list(q)[3]
         return np.array([x, y, float(q[0]) + float(q[1]) + float(q[2])])
 
     def jacobian(self, q) -> np.ndarray:
         """Column s: ∂(x, y, φ)/∂θ_Js = (−(e − p_s)_y, (e − p_s)_x, 1), e the end effector."""
-        return arm_jacobian(self._pins(q), attitude=True)
+        return arm_jacobian(self.pins_list(q), attitude=True)
 
     def inverse(self, goal, guess, tol: float = 1e-12, iterations: int = 100) -> np.ndarray:
         """Joint angles reaching pose `goal` = (x, y, φ) (Newton from `guess`)."""
@@ -101,10 +103,15 @@ def base_pd(theta: float, rate: float, theta_des: float, rate_des: float, kp: fl
     return -kp * (theta - theta_des) - kd * (rate - rate_des)
 
 
-def jacobian_transpose(jac: np.ndarray, error: np.ndarray, joint_rates: np.ndarray,
-                       kp: np.ndarray, kd: np.ndarray) -> np.ndarray:
-    """Eq. (14), before saturation: −K_p J_EEᵀ e_EE − K_d θ̇_J (K_p applied to e, K_d to θ̇)."""
-    return -(jac.T @ (kp * error)) - kd * joint_rates
+def jacobian_transpose(pins, error, joint_rates, kp, kd) -> list[float]:
+    """Eq. (14), before saturation: τ = −J_EEᵀ K_p e_EE − K_d θ̇_J (K_p applied to e, K_d to
+    θ̇), J_EE of the rigid arm whose four pins are `pins` (`ArmModel.pins`): its column s is
+    ∂(x, y, φ)/∂θ_Js = (−(e − p_s)_y, (e − p_s)_x, 1), e = pins[3] the end effector.  On
+    floats (every control sample): τ_s = (e − p_s)_y K_p,x e_x − (e − p_s)_x K_p,y e_y
+    − K_p,φ e_φ − K_d,s θ̇_s."""
+    ex, ey = pins[3][0], pins[3][1]
+    fx, fy, fphi = kp[0] * error[0], kp[1] * error[1], kp[2] * error[2]
+    return [(ey - pins[s][1]) * fx - (ex - pins[s][0]) * fy - fphi - kd[s] * joint_rates[s] for s in range(3)]
 
 
 @dataclass(frozen=True)
@@ -238,8 +245,8 @@ class ProgrammeController:
         self.period = period
         self.params = params
         self.arms = (ArmModel(params, 1), ArmModel(params, 2))
-        self.kp = np.array([spec.arm1.kp, spec.arm2.kp], float)
-        self.kd = np.array([spec.arm1.kd, spec.arm2.kd], float)
+        self.kp = (tuple(map(float, spec.arm1.kp)), tuple(map(float, spec.arm2.kp)))
+        self.kd = (tuple(map(float, spec.arm1.kd)), tuple(map(float, spec.arm2.kd)))
         self.refs: list[ArmReference | None] = [None, None]
         self.open_loop = [np.zeros(3), np.zeros(3)]
         self.base_mode = "hold"
@@ -341,18 +348,18 @@ class ProgrammeController:
             note = self.com_align.update(t, s)
             if note:
                 self.log.append((t, "com_align", note))
-        tau = np.zeros(6)
+        tau: list[float] = []
+        q = s.joint_angles.tolist()
+        rates = self.rates.tolist()
         for k in range(2):
-            q = s.joint_angles[3 * k:3 * k + 3]
             ref = self.refs[k]
             if ref is None:  # off or open loop
-                tau[3 * k:3 * k + 3] = self.open_loop[k]
+                tau += self.open_loop[k].tolist()
                 continue
-            des = ref(t, m)
-            err = m.ee_B[k] - des
+            err = (m.ee_B[k] - ref(t, m)).tolist()
             err[2] = math.remainder(err[2], 2.0 * math.pi)
-            tau[3 * k:3 * k + 3] = jacobian_transpose(self.arms[k].jacobian(q), err,
-                                                      self.rates[3 * k:3 * k + 3], self.kp[k], self.kd[k])
+            tau += jacobian_transpose(self.arms[k].pins_list(q[3 * k:3 * k + 3]), err, rates[3 * k:3 * k + 3],
+                                      self.kp[k], self.kd[k])
         tau_B = 0.0
         b = self.spec.base
         if self.base_mode != "off":
@@ -362,14 +369,14 @@ class ProgrammeController:
             else:
                 goal, rate = self.base_goal, 0.0
             tau_B = base_pd(s.base_pose_I[2], s.base_rate_I[2], goal, rate, b.kp, b.kd)
-        return saturate(Inputs(tau_m=tau, tau_B=tau_B, thrust=self.thrust), self.params)
+        return saturate(Inputs(tau_m=np.array(tau), tau_B=tau_B, thrust=self.thrust), self.params)
 
 
 def retrograde_attitude(r, v, mu: float) -> tuple[float, float]:
     """Attitude whose +x points against the orbital velocity, and its rate (Kepler motion):
     θ = atan2(−v), θ̇ = (v × a)/|v|² with a = −μ r/|r|³."""
-    rx, ry = (float(c) for c in r)
-    vx, vy = (float(c) for c in v)
+    rx, ry = np.asarray(r, float).tolist()
+    vx, vy = np.asarray(v, float).tolist()
     if vx == 0.0 and vy == 0.0:
         return 0.0, 0.0
     rn3 = math.hypot(rx, ry) ** 3

@@ -39,6 +39,10 @@ from rsmcheck.store import EngineRun, Event, Phase
 
 Progress = Callable[[str, float, float], None]
 
+#: the per-sample calls whose wall time a run reports (solver settings `wall_<part>_s`;
+#: `advance` includes the engine's own `wall_integrator_s`, the compiled or C++ integrator)
+SPLIT = ("sensors", "controller", "advance", "observe")
+
 
 def capture_point(s: Sensors, rho_T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Inertial position and velocity of the target point ρ_T (target frame, about the COM)."""
@@ -123,8 +127,13 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
     k = 0
     next_out = 0.0
     started = wallclock.monotonic()
+    # where the wall time goes (rsmcheck bench): the per-sample calls, timed here for every engine
+    clock = wallclock.perf_counter
+    spent = dict.fromkeys(SPLIT, 0.0)
     while True:
+        tic = clock()
         s = engine.sensors()
+        spent["sensors"] += clock() - tic
         if programme is not None and k == 0:
             programme.start(s)
         while releases and releases[0].time <= t + 0.5 * dt_case:
@@ -178,15 +187,19 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
                 contact[arm - 1] = touching
                 events.append(Event(t, "bistop_contact" if touching else "bistop_free",
                                     f"arm={arm} psi={psi_w:.6f}"))
+        tic = clock()
         u: Inputs = controller(s)
+        spent["controller"] += clock() - tic
         if programme is not None and programme.log:
             events.extend(Event(te, kind, detail) for te, kind, detail in programme.log)
             programme.log.clear()
         done = t >= t_end - eps
         if t >= next_out - eps or done:
+            tic = clock()
             sample = engine.observe(u)
             sample["capture_gap_B"] = capture_gap_B(s, report_arm, report_point)
             samples.append(sample)
+            spent["observe"] += clock() - tic
             while next_out <= t + eps:
                 next_out += out_period
         if done:
@@ -201,7 +214,9 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
             t_next = min(round(t_next / dt_case) * dt_case, t_end) if abs(t_next / dt_case - round(
                 t_next / dt_case)) < 1e-6 else t_next
         try:
+            tic = clock()
             engine.advance(t_next, u)
+            spent["advance"] += clock() - tic
         except SimulationDiverged as exc:
             raise SimulationDiverged(exc.engine, exc.time, phase, exc.quantity, exc.value) from None
         t = t_next
@@ -219,6 +234,8 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
     observables = {name: np.array([smp[name] for smp in samples]) for name in NAMES}
     solver = dict(engine.solver_settings())
     solver["wall_s"] = wallclock.monotonic() - started
+    solver["samples"] = k
+    solver.update({f"wall_{part}_s": spent[part] for part in SPLIT})
     return EngineRun(engine=engine.name, observables=observables, events=events,
                      phases=[Phase(phase, 0.0, t_final), *phases], solver=solver,
                      versions=engine.versions())

@@ -56,14 +56,21 @@ else:
 wall = time.perf_counter() - t0
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 print(json.dumps({"case": name, "engine": engine_name, "variant": "short" if short else "full",
-                  "wall_s": wall, "sim_s": float(result.observables["time"][-1]), "peak_mb": peak}))
+                  "wall_s": wall, "sim_s": float(result.observables["time"][-1]), "peak_mb": peak,
+                  "split": {k: result.solver[k] for k in SPLIT_KEYS if k in result.solver}}))
 """
+
+#: what a run reports about where its wall time went (rsmcheck.runner.SPLIT, the engines'
+#: `wall_integrator_s`): the bench's second table, µs per control sample
+SPLIT_KEYS = ("samples", "wall_s", "wall_integrator_s", "wall_advance_s", "wall_sensors_s",
+              "wall_controller_s", "wall_observe_s")
 
 
 def bench_run(case: str, engine: str, variant: str) -> dict[str, Any]:
     """One run in a fresh process: {case, engine, variant, wall_s, sim_s, peak_mb} or, when
     it fails, the same keys with NaN and `error` (the last line the process printed)."""
-    proc = subprocess.run([sys.executable, "-c", _CHILD, case, engine, "1" if variant == "short" else "0"],
+    child = f"SPLIT_KEYS = {SPLIT_KEYS!r}\n" + _CHILD
+    proc = subprocess.run([sys.executable, "-c", child, case, engine, "1" if variant == "short" else "0"],
                           capture_output=True, text=True)
     lines = proc.stdout.strip().splitlines()
     if proc.returncode == 0 and lines:
@@ -140,9 +147,41 @@ def table(doc: dict) -> str:
                      f"({rhs.get('pinocchio_nv', '?')} dof open chain)"
                      + (f" — rigid reference compiled / ABA = {rhs['reference_rigid_compiled'] / rhs['pinocchio_aba']:.1f}"
                         if math.isfinite(rhs.get("pinocchio_aba", math.nan)) else f" — {rhs.get('pinocchio_error')}"))
+    split = split_table(doc["runs"])
+    if split:
+        lines += ["", split]
     failed = [r for r in doc["runs"] if "error" in r]
     for r in failed:
         lines.append(f"FAILED {r['case']} {r['engine']} {r['variant']}: {r['error']}")
+    return "\n".join(lines)
+
+
+def per_sample_us(split: dict[str, float]) -> dict[str, float]:
+    """A run's wall time per control sample [µs], by where it went: `integrator` (the
+    compiled DP5 or Exudyn's solver thread), `engine` (the rest of `advance`: setting the
+    inputs, the field, checks), `sensors`, `controller`, `observe` (the recorded samples,
+    amortised), `runner` (the sampled-data loop itself: events, supervision)."""
+    n = split["samples"]
+    advance = split["wall_advance_s"]
+    integ = split.get("wall_integrator_s", advance)
+    parts = {"integrator": integ, "engine": advance - integ, "sensors": split["wall_sensors_s"],
+             "controller": split["wall_controller_s"], "observe": split["wall_observe_s"]}
+    parts["runner"] = split["wall_s"] - sum(parts.values())
+    return {k: v / n * 1e6 for k, v in parts.items()}
+
+
+def split_table(runs: Sequence[dict]) -> str:
+    """Where a control sample's wall time goes, per run (µs per sample; `per_sample_us`)."""
+    rows = [r for r in runs if "error" not in r and r.get("split", {}).get("samples")]
+    if not rows:
+        return ""
+    keys = ("integrator", "engine", "sensors", "controller", "observe", "runner")
+    head = f"{'µs per control sample':28s} {'samples':>9s} " + " ".join(f"{k:>10s}" for k in keys) + f" {'total':>8s}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        us = per_sample_us(r["split"])
+        lines.append(f"{r['case'] + ' ' + r['engine'][:3]:28s} {r['split']['samples']:9d} "
+                     + " ".join(f"{us[k]:10.1f}" for k in keys) + f" {sum(us.values()):8.1f}")
     return "\n".join(lines)
 
 

@@ -278,7 +278,7 @@ def _concatenate(engine: str, pieces: list[tuple[float, EngineRun]]) -> EngineRu
     solver: dict[str, Any] = {}
     for off, r in pieces:
         for k, v in r.solver.items():
-            if k in ("steps", "rejected_steps", "wall_s") and k in solver:
+            if (k in ("steps", "rejected_steps", "samples") or k.startswith("wall_")) and k in solver:
                 solver[k] += v
             else:
                 solver.setdefault(k, v)
