@@ -36,6 +36,7 @@ import plotly.offline
 from rsmcheck.cases import Case, list_cases, load_case
 from rsmcheck.errors import InputError
 from rsmcheck.observables import BY_NAME
+from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.orchestration.compare import metric_label
 from rsmcheck.orchestration.gate import golden_path, read_golden
@@ -321,6 +322,10 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     figures = paper.figures(page, st)
     dep_head, dep_rows = departures_table()
     bench = _stored_json(data_dir, "bench_*.json")
+    for _, doc in bench:  # where each run's time went, µs per control sample (runs that recorded it)
+        doc["per_sample"] = [{"case": r["case"], "engine": r["engine"], "samples": r["split"]["samples"],
+                              "us": per_sample_us(r["split"])}
+                             for r in doc.get("runs", []) if "error" not in r and r.get("split", {}).get("samples")]
     html_text = _environment().get_template("page.html.j2").render(
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
         kinds=sorted({r.kind for r in rows}), missions=missions, cases=cases, paper=figures,

@@ -109,3 +109,20 @@ def test_stored_studies_and_faults_render_from_a_data_folder(rendered, tmp_path)
     assert page.count('<span class="fail">MISSED</span>') == 1
     assert page.count('<span class="pass">as expected</span>') == 1
     assert "No stored speed measurement" in page
+
+
+def test_stored_bench_shows_where_each_run_spent_its_time(rendered, tmp_path):
+    """A bench document whose runs recorded their split gets the µs-per-sample table; a failed
+    run has no row."""
+    split = {"samples": 1000, "wall_s": 0.5, "wall_integrator_s": 0.3, "wall_advance_s": 0.32,
+             "wall_sensors_s": 0.05, "wall_controller_s": 0.06, "wall_observe_s": 0.01}
+    bench = {"command": "rsmcheck bench", "commit": "abc", "utc": "now", "engines": ["reference"],
+             "runs": [{"case": "p4_hohmann", "engine": "reference", "variant": "short", "wall_s": 0.5,
+                       "sim_s": 1.0, "peak_mb": 200.0, "split": split},
+                      {"case": "capture", "engine": "exudyn", "variant": "short", "wall_s": None, "sim_s": None,
+                       "peak_mb": None, "error": "boom"}]}
+    (tmp_path / "bench_short.json").write_text(json.dumps(bench))
+    page = render(rendered.folder, tmp_path / "page.html", ["free_drift"], data_dir=tmp_path).read_text()
+    assert "µs per control sample" in page
+    row = page[page.index('<td class="l">p4_hohmann</td><td class="l">reference</td><td>1000</td>'):]
+    assert row.split("</tr>")[0].count("<td>") == 8 and ">500<" in row.split("</tr>")[0]
