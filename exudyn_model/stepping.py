@@ -128,7 +128,10 @@ class SteppingMixin:
         restarted at the next advance).  The stall is the round-off floor of the axial
         forces: seen in p4_hohmann chained from p3 (t = 52.43 s), the residual stuck at
         1.03e-3 N against 1.0e-3 with contractivity 0.996.  A looser tolerance everywhere
-        costs accuracy (3e-3 N doubles release's momentum difference)."""
+        costs accuracy (3e-3 N doubles release's momentum difference).  (Until 2026-11-24 the
+        looser tolerance was set on the settings only, which the solver does not read after
+        `InitializeSolver`: the retries ran at the same tolerance and passed on the fresh
+        Jacobian of the new `SolveSteps`, docs/exudyn.md §4.)"""
         if self.rigid:
             return False
         sd = self.mbs.systemData
@@ -142,9 +145,8 @@ class SteppingMixin:
         sd.SetODE2Coordinates(q0)
         sd.SetODE2Coordinates_t(v0)
         sd.SetDataCoordinates(sd.GetDataCoordinates(configuration=sos))
-        newton = self.settings.timeIntegration.newton
-        atol = newton.absoluteTolerance
-        newton.absoluteTolerance = 10.0 * atol
+        atol = self.newton_atol
+        self._set_newton_atol(10.0 * atol)
         try:
             self._current_to_initial()
             self.settings.timeIntegration.startTime = t0
@@ -157,10 +159,18 @@ class SteppingMixin:
             it.adaptiveStep = True
             ok = bool(self.solver.SolveSteps(self.mbs, self.settings))
         finally:
-            newton.absoluteTolerance = atol
+            self._set_newton_atol(atol)
         self.stats["newton_retries"] += 1
         self._restart_pending = True
         return ok
+
+    def _set_newton_atol(self, atol: float) -> None:
+        """The absolute Newton tolerance the solver uses from now on.  The solver keeps its
+        own copy of the Newton settings, taken by `InitializeSolver` (a change of
+        `settings.timeIntegration.newton` alone is not seen, not even after
+        `InitializeSolverInitialConditions`), so both are set."""
+        self.settings.timeIntegration.newton.absoluteTolerance = atol
+        self.solver.newton.absoluteTolerance = atol
 
     def _set_inputs(self, held: tuple, thrust_inertia: "_ThrustInertia | None", span: float = 0.0) -> None:
         """Put the held inputs (τ_m, τ_B, thrust) of the coming control period of length

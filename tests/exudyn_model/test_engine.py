@@ -258,6 +258,19 @@ def test_stalled_newton_step_is_retried_with_a_looser_tolerance():
     eng = ExudynEngine(case, newton_atol=3e-5, substeps=32)
     r = run(eng, case, 0.01)
     assert eng.stats["newton_retries"] >= 1
-    assert eng.settings.timeIntegration.newton.absoluteTolerance == 3e-5  # restored
+    assert eng.solver.newton.absoluteTolerance == 3e-5  # restored, in the solver's own copy
+    assert eng.settings.timeIntegration.newton.absoluteTolerance == 3e-5
     assert np.all(np.isfinite(np.asarray(r.observables["link_deflection"])))
     assert r.observables["time"][-1] == pytest.approx(0.01)
+
+
+def test_a_new_newton_tolerance_reaches_the_solver():
+    """Exudyn's solver copies its Newton settings in `InitializeSolver`: a tolerance changed
+    afterwards (the retry of a stalled step) must be set on that copy, not only on the
+    settings (where it was, until 2026-11-24, without effect)."""
+    eng = ExudynEngine(load_case("flex_arm_step").variant(True))
+    eng.solver.InitializeSolverInitialConditions(eng.mbs, eng.settings)
+    eng._set_newton_atol(7e-3)
+    eng.solver.InitializeSolverInitialConditions(eng.mbs, eng.settings)
+    assert eng.solver.newton.absoluteTolerance == 7e-3
+    assert eng.settings.timeIntegration.newton.absoluteTolerance == 7e-3
