@@ -41,7 +41,8 @@ ATOL_SCALE = {
 
 class SteppingMixin:
     """`ReferenceEngine`'s stepping: reads model, cfg, rtol, integrator, h_max; advances
-    x, t, h, the step counters and the integrator's wall time; owns the TR-BDF2 iteration matrix (_jac, _minv, _work)."""
+    x, t, h, the step counters and the integrator's wall time; owns the TR-BDF2 iteration
+    matrix (_jac, _minv, _work)."""
 
     def _atol(self) -> np.ndarray:
         lay = self.model.layout
