@@ -62,8 +62,7 @@ class ArmModel:
 
     def __init__(self, params: Params, arm: int):
         self.arm = arm
-        self.mount = np.asarray(params.geometry.mount_B(arm), float)
-        self.mount_x, self.mount_y = float(self.mount[0]), float(self.mount[1])
+        self.mount_x, self.mount_y = (float(c) for c in params.geometry.mount_B(arm))
         self.length = params.link.length
 
     def pins_list(self, q) -> list[tuple[float, float]]:

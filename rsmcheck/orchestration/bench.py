@@ -32,6 +32,7 @@ from typing import Any, Sequence
 
 from rsmcheck.cases import list_cases, load_case
 from rsmcheck.params import Params
+from rsmcheck.runner import SPLIT
 from rsmcheck.store import dumps_json, git_commit, output_file, write_json
 
 VARIANTS = ("short", "full")
@@ -39,6 +40,7 @@ VARIANTS = ("short", "full")
 _CHILD = r"""
 import json, resource, sys, tempfile, time
 from rsmcheck.cases import load_case
+from rsmcheck.orchestration.bench import SPLIT_KEYS
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.runner import run
@@ -62,15 +64,15 @@ print(json.dumps({"case": name, "engine": engine_name, "variant": "short" if sho
 
 #: what a run reports about where its wall time went (rsmcheck.runner.SPLIT, the engines'
 #: `wall_integrator_s`): the bench's second table, µs per control sample
-SPLIT_KEYS = ("samples", "wall_s", "wall_integrator_s", "wall_advance_s", "wall_sensors_s",
-              "wall_controller_s", "wall_observe_s")
+SPLIT_KEYS = ("samples", "wall_s", "wall_integrator_s", *(f"wall_{part}_s" for part in SPLIT))
+#: the parts of a control sample's wall time (`per_sample_us`), in the table's order
+PARTS = ("integrator", "engine", "sensors", "controller", "observe", "runner")
 
 
 def bench_run(case: str, engine: str, variant: str) -> dict[str, Any]:
     """One run in a fresh process: {case, engine, variant, wall_s, sim_s, peak_mb} or, when
     it fails, the same keys with NaN and `error` (the last line the process printed)."""
-    child = f"SPLIT_KEYS = {SPLIT_KEYS!r}\n" + _CHILD
-    proc = subprocess.run([sys.executable, "-c", child, case, engine, "1" if variant == "short" else "0"],
+    proc = subprocess.run([sys.executable, "-c", _CHILD, case, engine, "1" if variant == "short" else "0"],
                           capture_output=True, text=True)
     lines = proc.stdout.strip().splitlines()
     if proc.returncode == 0 and lines:
@@ -175,13 +177,12 @@ def split_table(runs: Sequence[dict]) -> str:
     rows = [r for r in runs if "error" not in r and r.get("split", {}).get("samples")]
     if not rows:
         return ""
-    keys = ("integrator", "engine", "sensors", "controller", "observe", "runner")
-    head = f"{'µs per control sample':28s} {'samples':>9s} " + " ".join(f"{k:>10s}" for k in keys) + f" {'total':>8s}"
+    head = f"{'µs per control sample':28s} {'samples':>9s} " + " ".join(f"{k:>10s}" for k in PARTS) + f" {'total':>8s}"
     lines = [head, "-" * len(head)]
     for r in rows:
         us = per_sample_us(r["split"])
         lines.append(f"{r['case'] + ' ' + r['engine'][:3]:28s} {r['split']['samples']:9d} "
-                     + " ".join(f"{us[k]:10.1f}" for k in keys) + f" {sum(us.values()):8.1f}")
+                     + " ".join(f"{us[k]:10.1f}" for k in PARTS) + f" {sum(us.values()):8.1f}")
     return "\n".join(lines)
 
 
