@@ -145,26 +145,27 @@ class FieldMixin:
         self.v_O = np.array([vx + h / 6 * (a1[0] + 2 * a2[0] + 2 * a3[0] + a4[0]),
                              vy + h / 6 * (a1[1] + 2 * a2[1] + 2 * a3[1] + a4[1])])
 
-    def _uniform_field_matrix(self) -> np.ndarray:
+    def _uniform_field_matrix(self, m_base: float) -> np.ndarray:
         """U with U a = generalised forces of a uniform acceleration field a on every mass
-        element (physics.md §5: M_X[:, R] a), carrier coordinates × 2; rebuilt only when the
-        base mass (propellant) has changed."""
-        if self._uniform is not None and self._uniform[0] == self._mass_base():
+        element (physics.md §5: M_X[:, R] a), carrier coordinates × 2, for the base mass
+        `m_base` [kg]; rebuilt only when that mass (propellant) has changed."""
+        if self._uniform is not None and self._uniform[0] == m_base:
             return self._uniform[1]
         p = self.params
-        blocks = [np.array([[m, 0.0], [0.0, m], [0.0, 0.0]]) for m in (self._mass_base(), p.target.mass)]
+        blocks = [np.array([[m, 0.0], [0.0, m], [0.0, 0.0]]) for m in (m_base, p.target.mass)]
         for it in self.links:
             if it.rigid:
                 # about the link COM a uniform field has no moment
                 blocks.append(np.array([[p.link.mass, 0.0], [0.0, p.link.mass], [0.0, 0.0]]))
             else:
                 blocks.append(self.first.T)
-        self._uniform = (self._mass_base(), np.vstack(blocks))
+        self._uniform = (m_base, np.vstack(blocks))
         return self._uniform[1]
 
-    def _tidal_forces(self, q, r_O: np.ndarray) -> np.ndarray:
+    def _tidal_forces(self, q, r_O: np.ndarray, m_base: float) -> np.ndarray:
         """Generalised forces of the exact tidal field at the positions q about the orbit
-        point r_O (zero without an orbit), carrier coordinates: base and target at their COM,
+        point r_O (zero without an orbit), the base of mass `m_base` [kg], carrier
+        coordinates: base and target at their COM,
         a flexible link over its Gauss points (r_g = S(ξ_g) q_i, forces Σ_g S(ξ_g)ᵀ ρA w_g
         Δg_g, `tidal_link_forces`, the same S for every link: one mesh), a rigid link over
         its own Gauss points with the moment about its centre."""
@@ -176,7 +177,7 @@ class FieldMixin:
         cols, vals = self._field_S
         q_flex = iter(tidal_link_forces(q[self._flex_coords], cols, vals, self._field_weights, r_O, mu))
         xs_rigid, ws_rigid = self._rigid_gauss
-        f_bt = tidal_point_forces(q[self._field_points], np.array([self._mass_base(), p.target.mass]), r_O, mu)
+        f_bt = tidal_point_forces(q[self._field_points], np.array([m_base, p.target.mass]), r_O, mu)
         out = [np.array([f_bt[0, 0], f_bt[0, 1], 0.0]), np.array([f_bt[1, 0], f_bt[1, 1], 0.0])]
         for it in self.links:
             if not it.rigid:

@@ -131,7 +131,13 @@ class SteppingMixin:
         costs accuracy (3e-3 N doubles release's momentum difference).  (Until 2026-11-24 the
         looser tolerance was set on the settings only, which the solver does not read after
         `InitializeSolver`: the retries ran at the same tolerance and passed on the fresh
-        Jacobian of the new `SolveSteps`, docs/exudyn.md §4.)"""
+        Jacobian of the new `SolveSteps`, docs/exudyn.md §4.)
+
+        The failed step starts at t0 by Exudyn's clock, a running sum t += h that drifts
+        from the runner's samples (docs/exudyn.md §5, item 5: −2.6e-11 s at 60 s of p1,
+        up to ~1e-7 s in p4's burn 2), so t0 is matched to the interval within a quarter
+        step, not to round-off: a 1e-12 s match refused the retry of a stall at 60.092 s
+        of the full p1, 2.6e-11 s behind, and ended the mission there."""
         if self.rigid:
             return False
         sd = self.mbs.systemData
@@ -139,8 +145,13 @@ class SteppingMixin:
         q0 = np.asarray(sd.GetODE2Coordinates(configuration=sos))
         v0 = np.asarray(sd.GetODE2Coordinates_t(configuration=sos))
         t0 = float(sd.GetTime(sos))
-        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(v0))) or not self.t - 1e-12 <= t0 < t_next:
+        h = self.dt / self.substeps
+        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(v0))):
             return False
+        if not self.t - 0.25 * h <= t0 < t_next - 0.25 * h:
+            raise SimulationDiverged(self.name, self.t, "?",
+                                     f"Newton failed in a step that starts at {t0!r} s, not in the interval "
+                                     f"[{self.t!r}, {t_next!r}) s (no retry)", t0)
         self._pause()
         sd.SetODE2Coordinates(q0)
         sd.SetODE2Coordinates_t(v0)
@@ -153,7 +164,7 @@ class SteppingMixin:
             self.settings.timeIntegration.endTime = t_next
             self.solver.InitializeSolverInitialConditions(self.mbs, self.settings)
             it = self.solver.it
-            n = max(1, math.ceil((t_next - t0) / (self.dt / self.substeps) - 1e-6))
+            n = max(1, math.ceil((t_next - t0) / h - 1e-3))  # the clock's drift is not a step
             it.startTime, it.endTime = t0, t_next
             it.currentStepSize = (t_next - t0) / n
             it.adaptiveStep = True
@@ -174,8 +185,9 @@ class SteppingMixin:
 
     def _set_inputs(self, held: tuple, thrust_inertia: "_ThrustInertia | None", span: float = 0.0) -> None:
         """Put the held inputs (τ_m, τ_B, thrust) of the coming control period of length
-        `span` [s] into the mbs; with the field machinery also the base mass, the tidal
-        forces and the thrust inertia, through `thrust_inertia` (evaluated every step).
+        `span` [s] into the mbs; with the field machinery also the base mass (that of the
+        period's middle), the tidal forces and the thrust inertia, through `thrust_inertia`
+        (evaluated every step).
 
         The tidal forces are held over the period at its middle: evaluated at the
         positions and the orbit point O extrapolated by span/2 (q + ½ span q̇,
@@ -192,9 +204,17 @@ class SteppingMixin:
         mbs.SetLoadParameter(self.thrust_load, "loadVector", [float(thrust), 0.0, 0.0])
         if thrust_inertia is not None:
             q, v = self._qv()
-            mbs.SetObjectParameter(self.base, "mass", self._mass_base())
-            tidal = self._tidal_forces(q + 0.5 * span * v, self.r_O + 0.5 * span * self.v_O)
-            thrust_inertia.hold(tidal, self._uniform_field_matrix(), thrust / self._com(q)[1], self.t)
+            # the masses of the period's middle: m(t + span/2) = m(t) − ṁ span/2, ṁ = T/(I_sp g0)
+            # (physics.md §5).  Held at the start, the mean thrust acceleration T/m would be
+            # low by ṁ span/(2m), a first-order bias that the coasts turn into altitude
+            # (docs/exudyn.md §5, item 5); at the middle 1/m misses its mean by O(span²).
+            a = self.params.actuators
+            dm_half = 0.5 * span * thrust / (a.isp * a.g0)
+            m_base = self._mass_base() - dm_half
+            mbs.SetObjectParameter(self.base, "mass", m_base)
+            tidal = self._tidal_forces(q + 0.5 * span * v, self.r_O + 0.5 * span * self.v_O, m_base)
+            thrust_inertia.hold(tidal, self._uniform_field_matrix(m_base), thrust / (self._com(q)[1] - dm_half),
+                                self.t)
             mbs.SetObjectParameter(self.carrier, "forceVector", thrust_inertia.forces(q[self.i_base[2]]))
 
     def _is_step(self, held) -> bool:
@@ -226,7 +246,11 @@ class _Worker:
         # engine's finalizer stops the thread when the engine is dropped
         self.mbs, self.solver, self.settings, self.dt = engine.mbs, engine.solver, engine.settings, engine.dt
         self.h = engine.dt / engine.substeps
-        self.tol = 1e-6 * self.h
+        # the step that ends a control interval is found within a quarter step: Exudyn's
+        # clock (t += h) drifts from the runner's samples by up to ~1e-7 s over a long run
+        # (docs/exudyn.md §5, item 5); matched to 1e-6 h it ran one step past a sample once
+        # the drift exceeded 5e-10 s, which then counted as a failed step and a retry
+        self.tol = 0.25 * self.h
         self.target = math.inf  # pause at the end of the step that reaches this time
         self.go = threading.Event()
         self.arrived = threading.Event()
@@ -239,7 +263,7 @@ class _Worker:
     def _post_step(self, mbs, t: float) -> bool:
         if self.thread is None or threading.current_thread() is not self.thread or t <= self.t_start + 1e-12:
             return True
-        if t < self.target - self.tol:
+        if not self.ends_interval(t):
             return True  # a step inside the interval
         self.arrived.set()
         self.go.wait()
@@ -247,6 +271,11 @@ class _Worker:
         if self.command == "stop":
             self.solver.it.endTime = t  # the run ends here, cleanly, at this sample
         return True
+
+    def ends_interval(self, t: float) -> bool:
+        """True for the step (ending at t by Exudyn's clock) that ends the current
+        control interval."""
+        return t >= self.target - self.tol
 
     def _run(self) -> None:
         try:
@@ -281,7 +310,7 @@ class _Worker:
             self.thread.join()
             self.thread = None
             return False
-        return abs(self.mbs.systemData.GetTime() - t_next) < max(self.tol, 1e-9 * max(1.0, t_next))
+        return abs(self.mbs.systemData.GetTime() - t_next) < self.tol
 
     def stop(self) -> None:
         if self.thread is not None and self.thread.is_alive():

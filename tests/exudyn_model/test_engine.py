@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import exudyn as exu
 import numpy as np
 import pytest
 
@@ -28,6 +29,7 @@ from exudyn_model.engine import ExudynEngine
 from rsmcheck.cases import load_case
 from rsmcheck.orchestration.compare import compare_runs
 from rsmcheck.engine import Inputs
+from rsmcheck.errors import SimulationDiverged
 from rsmcheck.geometry import rigid_arm
 from rsmcheck.initial import build_initial
 from rsmcheck.observables import NAMES
@@ -274,3 +276,35 @@ def test_a_new_newton_tolerance_reaches_the_solver():
     eng.solver.InitializeSolverInitialConditions(eng.mbs, eng.settings)
     assert eng.solver.newton.absoluteTolerance == 7e-3
     assert eng.settings.timeIntegration.newton.absoluteTolerance == 7e-3
+
+
+def test_a_retry_finds_its_step_on_a_drifting_clock():
+    """Exudyn's clock (t += h) drifts from the runner's samples (−2.6e-11 s at 60 s of the
+    full p1, up to ~1e-7 s in p4's burn 2, docs/exudyn.md §5).  A stalled step that starts
+    that far behind the runner's sample is still retried; a match to 1e-12 s refused it and
+    ended the full p1 at 60.092 s."""
+    case = load_case("flex_arm_step").variant(True)
+    eng = ExudynEngine(case)
+    for k in range(1, 4):
+        eng.advance(k * 1e-3, Inputs(tau_m=np.full(6, 0.5)))
+    sd = eng.mbs.systemData
+    sd.SetTime(eng.t - 3e-11, exu.ConfigurationType.StartOfStep)
+    assert eng._retry_looser(eng.t + 1e-3)
+    assert sd.GetTime() == pytest.approx(eng.t + 1e-3, abs=1e-12)
+    # a step that does not start in the interval is reported, not retried
+    sd.SetTime(eng.t - 0.4e-3, exu.ConfigurationType.StartOfStep)
+    with pytest.raises(SimulationDiverged, match="not in the interval"):
+        eng._retry_looser(eng.t + 1e-3)
+
+
+def test_the_worker_ends_an_interval_within_a_quarter_step():
+    """The step that ends a control interval is recognised within h/4 of the sample, so a
+    clock running 3e-9 s behind (more than the former 1e-6 h = 5e-10 s) does not run one
+    step past the sample; a step h/2 short of it is a step inside the interval."""
+    eng = ExudynEngine(load_case("free_drift"), rigid=True)
+    eng.advance(1e-3, Inputs())
+    worker = eng._worker
+    h = worker.h
+    worker.target = 2e-3
+    assert worker.ends_interval(2e-3 - 3e-9) and worker.ends_interval(2e-3 + 3e-9)
+    assert not worker.ends_interval(2e-3 - 0.5 * h)
