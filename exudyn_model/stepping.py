@@ -118,8 +118,7 @@ class SteppingMixin:
                                      float(q[bad]) if bad >= 0 else float("nan"))
         if self.field:
             self._advance_orbit(t_next - self.t, self._thrust_inertia.mean_acceleration(t_next - self.t))
-            p = self.params.actuators
-            self.m_used += thrust / (p.isp * p.g0) * (t_next - self.t)
+            self.m_used += self._mass_flow(thrust) * (t_next - self.t)
         self.t = t_next
 
     def _retry_looser(self, t_next: float) -> bool:
@@ -175,6 +174,11 @@ class SteppingMixin:
         self._restart_pending = True
         return ok
 
+    def _mass_flow(self, thrust: float) -> float:
+        """Propellant flow ṁ = T/(I_sp g0) [kg/s] at thrust T [N] (physics.md §5)."""
+        a = self.params.actuators
+        return thrust / (a.isp * a.g0)
+
     def _set_newton_atol(self, atol: float) -> None:
         """The absolute Newton tolerance the solver uses from now on.  The solver keeps its
         own copy of the Newton settings, taken by `InitializeSolver` (a change of
@@ -208,8 +212,7 @@ class SteppingMixin:
             # (physics.md §5).  Held at the start, the mean thrust acceleration T/m would be
             # low by ṁ span/(2m), a first-order bias that the coasts turn into altitude
             # (docs/exudyn.md §5, item 5); at the middle 1/m misses its mean by O(span²).
-            a = self.params.actuators
-            dm_half = 0.5 * span * thrust / (a.isp * a.g0)
+            dm_half = 0.5 * span * self._mass_flow(thrust)
             m_base = self._mass_base() - dm_half
             mbs.SetObjectParameter(self.base, "mass", m_base)
             tidal = self._tidal_forces(q + 0.5 * span * v, self.r_O + 0.5 * span * self.v_O, m_base)
