@@ -225,6 +225,7 @@ def refinement_study(case_name: str, modes: Sequence[int], exudyn: Sequence[tupl
         params = replace(p, link=replace(p.link, axial_to_bending=ea))
         exu, w = _run("exudyn", case, case.duration, substeps=s, params=params)
         doc["exudyn_wall_s"][f"{s},{ea:g}"] = w
+        doc["exudyn_links"] = exu.solver["links"]  # the case's [exudyn] elements
         for n in modes:
             rows = check_runs(case, refs[n], exu)
             doc["errors"][f"{n},{s},{ea:g}"] = {r.observable: r.error for r in rows}
