@@ -76,6 +76,11 @@ class SteppingMixin:
             raise SimulationDiverged(self.name, self.t, "?", "thrust without field (build with field=True)", thrust)
         span = t_next - self.t
         self._set_inputs(held, self._thrust_inertia if self.field else None, span)
+        if self._held is None and self.field:
+            # the solver's initial accelerations were computed at build, without the field
+            # forces just set: restart so that they include them (else the first steps take
+            # the O(h) error of an input jump; docs/exudyn.md §5 item 5, "the first interval")
+            self._restart()
         if held != self._held:
             if self.restart_on_input_change and self._is_step(held):
                 # a step in the held inputs is a jump in the accelerations: restart the
