@@ -2,8 +2,11 @@
 
 Every (case, engine, variant) run happens in a fresh Python process, so that its peak
 resident memory is its own; its wall time excludes the process start, the imports and
-numba's compilation (a warm-up run of 0.01 s of the same case comes first).  The mission
-runs its phases chained, as `rsmcheck run mission` does.  Reported per run: simulated
+numba's compilation (a warm-up run of 0.01 s of the same case comes first).  Each run is
+the variant `rsmcheck run/check` would run: with `--variant short` the case's [short]
+variant with its own segments and engine settings (`bench_cases`).  The mission runs its
+phases chained, as `rsmcheck run mission` does.  Beside the times, each run records the
+settings and counts behind them (`SOLVER_KEYS`: steps, Newton iterations, Jacobians).  Reported per run: simulated
 seconds, wall seconds, simulated seconds per wall second (× real time), peak memory; a run
 that fails is reported with its error and the others go on (in the JSON, `--json` and
 `--out`, its numbers are null: the document is strict JSON, `store.dumps_json`).
@@ -30,7 +33,7 @@ import sys
 import time
 from typing import Any, Sequence
 
-from rsmcheck.cases import list_cases, load_case
+from rsmcheck.cases import Case, list_cases, load_case
 from rsmcheck.params import Params
 from rsmcheck.runner import SPLIT
 from rsmcheck.store import dumps_json, git_commit, output_file, write_json
@@ -40,33 +43,47 @@ VARIANTS = ("short", "full")
 _CHILD = r"""
 import json, resource, sys, tempfile, time
 from rsmcheck.cases import load_case
-from rsmcheck.orchestration.bench import SPLIT_KEYS
+from rsmcheck.orchestration.bench import SOLVER_KEYS, SPLIT_KEYS, bench_cases
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.engines import make_engine
 from rsmcheck.runner import run
 from rsmcheck.store import read_run
 name, engine_name, short = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
-case = load_case(name)
-first = load_case(case.variant(short).phases[0]) if case.phases else case
-run(make_engine(engine_name, first), first, min(0.01, first.run_duration(short)))  # warm-up
+case, first = bench_cases(name, short)
+run(make_engine(engine_name, first), first, min(0.01, first.duration))  # warm-up
 t0 = time.perf_counter()
 if case.phases:
     with tempfile.TemporaryDirectory() as out:
-        result = read_run(run_case(case, [engine_name], short, out_dir=out))[0][engine_name]
+        result = read_run(run_case(load_case(name), [engine_name], short, out_dir=out))[0][engine_name]
 else:
-    result = run(make_engine(engine_name, case), case, case.run_duration(short))
+    result = run(make_engine(engine_name, case), case, case.duration)
 wall = time.perf_counter() - t0
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 print(json.dumps({"case": name, "engine": engine_name, "variant": "short" if short else "full",
                   "wall_s": wall, "sim_s": float(result.observables["time"][-1]), "peak_mb": peak,
-                  "split": {k: result.solver[k] for k in SPLIT_KEYS if k in result.solver}}))
+                  "split": {k: result.solver[k] for k in SPLIT_KEYS if k in result.solver},
+                  "solver": {k: result.solver[k] for k in SOLVER_KEYS if k in result.solver}}))
 """
 
 #: what a run reports about where its wall time went (rsmcheck.runner.SPLIT, the engines'
 #: `wall_integrator_s`): the bench's second table, µs per control sample
 SPLIT_KEYS = ("samples", "wall_s", "wall_integrator_s", *(f"wall_{part}_s" for part in SPLIT))
+#: the engine settings and counts that decide a run's cost, stored beside its times so that
+#: a figure can be traced to what was run (the variant's own [solver] / [exudyn] settings)
+SOLVER_KEYS = ("steps", "rejected_steps", "h_max", "rtol", "step", "substeps", "n_elements", "links",
+               "newton_iterations", "newton_retries", "jacobians", "jacobian_per_step", "newton_atol")
 #: the parts of a control sample's wall time (`per_sample_us`), in the table's order
 PARTS = ("integrator", "engine", "sensors", "controller", "observe", "runner")
+
+
+def bench_cases(name: str, short: bool) -> tuple[Case, Case]:
+    """(what the bench times, what it warms up on) for case `name`: the variant that
+    `rsmcheck run/check [--short]` runs — with `short`, the case's [short] variant with its
+    own segments and [solver]/[exudyn] settings, not the full case cut at the short
+    duration — and, for the mission, the same variant of its first phase."""
+    case = load_case(name).variant(short)
+    first = load_case(case.phases[0]).variant(short) if case.phases else case
+    return case, first
 
 
 def bench_run(case: str, engine: str, variant: str) -> dict[str, Any]:

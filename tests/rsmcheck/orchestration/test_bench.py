@@ -27,3 +27,30 @@ def test_split_per_sample_and_table():
 def test_no_split_no_table():
     """Runs stored before the split was recorded (or failed runs) give no table, not an error."""
     assert split_table([_run("free_drift", "reference", {})]) == ""
+
+
+def test_bench_times_the_variant_that_check_runs():
+    """`--variant short` times each case's [short] variant with its own segments and engine
+    settings (motor_step's short run keeps modified Newton; its full run takes a Jacobian
+    per step), not the full case cut at the short duration."""
+    from rsmcheck.cases import load_case
+    from rsmcheck.orchestration.bench import bench_cases
+
+    full = load_case("motor_step")
+    timed, warm = bench_cases("motor_step", short=True)
+    assert timed is warm and timed.duration == full.short_duration
+    assert timed.segments == full.short.segments != full.segments
+    assert full.exudyn.jacobian_per_step and not timed.exudyn.jacobian_per_step
+    assert bench_cases("motor_step", short=False)[0].exudyn == full.exudyn
+    mission, first = bench_cases("mission", short=True)
+    assert first.name == mission.phases[0] and first.duration == load_case(first.name).short_duration
+
+
+def test_bench_run_reports_what_it_ran():
+    """A real (short, cheap) run in a fresh process: its numbers and the settings behind them."""
+    from rsmcheck.orchestration.bench import bench_run
+
+    r = bench_run("p1_rigid_gains", "reference", "short")
+    assert "error" not in r, r
+    assert abs(r["sim_s"] - 0.2) < 1e-9 and r["wall_s"] > 0 and r["peak_mb"] > 0
+    assert r["solver"]["steps"] > 0 and r["split"]["samples"] == 200
