@@ -6,7 +6,10 @@ a temporary copy of the tree; in that copy the short variants of `CASES` are run
 engines the fault can affect, and three kinds of check look at them:
 
 * **cross-check**: the case's `[compare]` rows, reference against Exudyn.  When only one
-  engine is faulted, the other engine's run is its golden (at the golden's samples);
+  engine is faulted, the other engine's run is its unfaulted *baseline* run: both engines
+  run the cases once on the unfaulted copy before the faults (every sample, so that a
+  metric such as `growth` sees the same grid; the baseline's own cross-check must pass,
+  else every catch would be meaningless and the driver stops);
 * **Pinocchio**: `pinocchio_check.compare.run_checks` (rigid kinematics and dynamics of the
   reference, 20 seeded states per chain, rigid and with modes), for faults that reach the
   reference;
@@ -14,9 +17,15 @@ engines the fault can affect, and three kinds of check look at them:
 
 The catch matrix goes to docs/data/faults.json and into the report.  The control fault
 ("noop_commuted_sum") changes code without changing arithmetic and must be caught by
-nothing: it shows that the gate is not a change detector for text.  Faults in the
-reference's compiled core are run one after the other, so the copy's numba cache is
-rebuilt once per such fault, not once per process.
+nothing: it shows that the gate is not a change detector for text.
+
+Every fault starts from an empty numba cache (compiled once in the probe's process, then
+loaded by its workers).  numba keys a cached function on its own file's stamp, not on the
+files it calls into: with the copy's cache kept, the compiled integrator
+(reference_model/stepping.py) went on calling the unfaulted core.py it had been compiled
+against, and a fault of `rhs` — the mass flow of eq. (16) with the wrong g0 — left
+thrust_burn's system mass exactly unchanged (918.668075676539 kg both; 918.668168535508
+with a fresh cache).
 """
 
 from __future__ import annotations
@@ -31,12 +40,12 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from rsmcheck.cases import load_case
+from rsmcheck.cases import Case, load_case
 from rsmcheck.orchestration.compare import check_runs
-from rsmcheck.orchestration.gate import at_samples, compare_with_golden, golden_path, read_golden
+from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.runs import Job, expected_wall, run_engine, run_jobs
 from rsmcheck.runner import run
-from rsmcheck.store import git_commit, write_json
+from rsmcheck.store import EngineRun, git_commit, read_run, write_json, write_run
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "data" / "faults.json"
@@ -44,6 +53,8 @@ OUT = ROOT / "docs" / "data" / "faults.json"
 #: mechanism (open/closed chain, capture-free release, bistop, orbit, thrust, growth)
 CASES = ("p1_rigid_gains", "flex_arm_step", "release", "gravity_gradient", "wrist_bistop", "thrust_burn")
 PINOCCHIO_STATES = 20
+#: where the driver's copy keeps the unfaulted runs of CASES (relative to the copy's root)
+BASELINE_DIR = ".faults_baseline"
 
 
 @dataclass(frozen=True)
@@ -155,13 +166,32 @@ def revert(fault: Fault, root: Path, tree: Path) -> None:
     shutil.copy2(root / fault.path, tree / fault.path)
 
 
+def _in_copy(tree: Path, *args: str) -> subprocess.CompletedProcess:
+    """`python -m rsmcheck.orchestration.faults ARGS` inside the copy (its own imports), with
+    an empty numba cache (module doc: the cache does not see a change in a called file)."""
+    cache = tree / ".numba_cache"
+    shutil.rmtree(cache, ignore_errors=True)
+    env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(cache)}
+    return subprocess.run([sys.executable, "-m", "rsmcheck.orchestration.faults", *args],
+                          cwd=tree, env=env, capture_output=True, text=True)
+
+
+def run_baseline(tree: Path) -> None:
+    """The unfaulted runs of CASES in both engines, stored in the copy (module doc)."""
+    proc = _in_copy(tree, "baseline")
+    if proc.returncode != 0:
+        raise RuntimeError(f"the baseline runs failed:\n{proc.stderr[-3000:]}")
+    failed = json.loads(proc.stdout.strip().splitlines()[-1])["crosscheck"]
+    if failed:
+        raise RuntimeError("the unfaulted baseline fails its own cross-check, so no fault's catch would "
+                           "mean anything: " + "; ".join(failed))
+
+
 def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
     apply(fault, tree)
     t0 = time.monotonic()
     try:
-        env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(tree / ".numba_cache")}
-        proc = subprocess.run([sys.executable, "-m", "rsmcheck.orchestration.faults", "probe", fault.name],
-                              cwd=tree, env=env, capture_output=True, text=True)
+        proc = _in_copy(tree, "probe", fault.name)
     finally:
         revert(fault, ROOT, tree)
     if proc.returncode != 0:
@@ -177,7 +207,8 @@ def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.faults",
                                  description=__doc__.split("\n\n")[0])
-    ap.add_argument("command", nargs="?", default="all", help="all (default) or probe")
+    ap.add_argument("command", nargs="?", default="all",
+                    help="all (default); probe and baseline run inside the copy")
     ap.add_argument("names", nargs="*", help="only these faults (default: all)")
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--tree", default="/tmp/rsmcheck-faults/tree", help="where the copy of the tree goes")
@@ -185,9 +216,15 @@ def main(argv=None) -> int:
     if args.command == "probe":
         print(json.dumps(probe(_by_name(args.names[0]))))
         return 0
+    if args.command == "baseline":
+        print(json.dumps(baseline()))
+        return 0
     faults = [_by_name(n) for n in args.names] if args.names else list(FAULTS)
     tree = make_copy(ROOT, Path(args.tree))
     print(f"fault injection: {len(faults)} faults on a copy in {tree}; cases {', '.join(CASES)}", flush=True)
+    t0 = time.monotonic()
+    run_baseline(tree)
+    print(f"baseline: both engines unfaulted, cross-check passes ({time.monotonic() - t0:.0f} s)", flush=True)
     results = [run_fault(f, tree, lambda s: print(s, flush=True)) for f in faults]
     doc = {"cases": list(CASES), "pinocchio_states": PINOCCHIO_STATES, "commit": git_commit()[0],
            "faults": results}
@@ -210,9 +247,8 @@ def _by_name(name: str) -> Fault:
 # ---------------------------------------------------------------------------------------
 # the probe: runs inside the faulted copy (its own imports)
 # ---------------------------------------------------------------------------------------
-def probe(fault: Fault) -> dict:
-    """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
-    engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
+def _run_cases(engines: list[str]) -> tuple[list[Case], dict[tuple[str, str], EngineRun]]:
+    """The short variants of CASES run by `engines` in this tree: (variants, (case, engine) → run)."""
     if "reference" in engines:  # compile the core once, in this process, before the workers
         from reference_model.engine import ReferenceEngine  # engines are imported lazily: heavy, optional
 
@@ -225,28 +261,41 @@ def probe(fault: Fault) -> dict:
     for job in jobs:
         if done[job].error is not None:
             raise done[job].error
-    runs = {job.key: done[job].value for job in jobs}
+    return variants, {job.key: done[job].value for job in jobs}
+
+
+def _crosscheck(v: Case, pair: dict[str, EngineRun]) -> list[str]:
+    failed = [c for c in check_runs(v, pair["reference"], pair["exudyn"]) if not c.passed]
+    return [f"{v.name}: {c.observable} {c.error:.2e} > {c.tolerance:.1e}" for c in failed]
+
+
+def baseline() -> dict:
+    """Run CASES unfaulted in both engines, store the runs (BASELINE_DIR) and cross-check them."""
+    variants, runs = _run_cases(["reference", "exudyn"])
+    out: dict[str, list[str]] = {"crosscheck": []}
+    for v in variants:
+        pair = {e: runs[(v.name, e)] for e in ("reference", "exudyn")}
+        write_run(Path(BASELINE_DIR) / f"{v.name}.h5", pair, case_name=v.name, case_hash=v.file_hash,
+                  param_hash=v.params.digest())
+        out["crosscheck"] += _crosscheck(v, pair)
+    return out
+
+
+def probe(fault: Fault) -> dict:
+    """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
+    engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
+    variants, runs = _run_cases(engines)
     out = {"crosscheck": [], "pinocchio": [], "gate": []}
     for v in variants:
-        goldens = {e: read_golden(golden_path(v.name, e), e) for e in ("reference", "exudyn")}
         new = {e: runs[(v.name, e)] for e in engines}
         for e, r in new.items():
-            g = compare_with_golden(v, r, goldens[e])
+            g = compare_with_golden(v, r, read_golden(golden_path(v.name, e), e))
             if not g.unchanged:
                 parts = (["inputs changed"] if g.inputs_changed else []) + g.structure[:1] + [m.observable for m in g.moved]
                 out["gate"].append(f"{v.name}/{e}: " + ", ".join(parts))
-        if len(new) == 2:
-            pair = new
-        else:  # the other engine's golden, this one at the golden's samples
-            (e, r), = new.items()
-            g = goldens[e]
-            if len(r.observables["time"]) != g.n_full:
-                out["crosscheck"].append(f"{v.name}: time grid changed")
-                continue
-            pair = {e: at_samples(r, g.index),
-                    **{o: goldens[o].run for o in ("reference", "exudyn") if o != e}}
-        failed = [c for c in check_runs(v, pair["reference"], pair["exudyn"]) if not c.passed]
-        out["crosscheck"] += [f"{v.name}: {c.observable} {c.error:.2e} > {c.tolerance:.1e}" for c in failed]
+        # one engine faulted: the other engine's unfaulted baseline run of the same case
+        pair = new if len(new) == 2 else {**read_run(Path(BASELINE_DIR) / f"{v.name}.h5")[0], **new}
+        out["crosscheck"] += _crosscheck(v, pair)
     if fault.layer in ("reference", "shared", "none"):
         from pinocchio_check.compare import run_checks  # engines are imported lazily: Pinocchio is optional
 

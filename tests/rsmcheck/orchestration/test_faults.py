@@ -33,3 +33,26 @@ def test_apply_and_revert_on_a_copy(tmp_path):
     assert f.new in dest.read_text() and f.old not in dest.read_text()
     revert(f, ROOT, tmp_path)
     assert dest.read_text() == Path(ROOT / f.path).read_text()
+
+
+def test_every_run_in_the_copy_starts_from_an_empty_numba_cache(tmp_path, monkeypatch):
+    """numba keys a cached function on its own file, not on the files it calls: a cache kept
+    from an unfaulted run hid faults of core.py's `rhs` behind the cached integrator."""
+    import subprocess
+
+    import rsmcheck.orchestration.faults as faults
+
+    stale = tmp_path / ".numba_cache" / "reference_model_x" / "stepping.dp5.nbi"
+    stale.parent.mkdir(parents=True)
+    stale.write_text("compiled against the unfaulted core")
+    seen = {}
+
+    def fake_run(cmd, cwd, env, **kw):
+        seen.update(cmd=cmd, cwd=cwd, cache=env["NUMBA_CACHE_DIR"], path=env["PYTHONPATH"],
+                    cache_left=Path(env["NUMBA_CACHE_DIR"]).exists())
+        return subprocess.CompletedProcess(cmd, 0, "{}", "")
+
+    monkeypatch.setattr(faults.subprocess, "run", fake_run)
+    faults._in_copy(tmp_path, "probe", FAULTS[0].name)
+    assert seen["cache"] == str(tmp_path / ".numba_cache") and not seen["cache_left"]
+    assert seen["path"] == str(tmp_path) and seen["cwd"] == tmp_path and seen["cmd"][-2:] == ["probe", FAULTS[0].name]
