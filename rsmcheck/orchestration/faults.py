@@ -13,7 +13,10 @@ engines the fault can affect, and three kinds of check look at them:
 * **Pinocchio**: `pinocchio_check.compare.run_checks` (rigid kinematics and dynamics of the
   reference, 20 seeded states per chain, rigid and with modes), for faults that reach the
   reference;
-* **gate**: each re-run engine against its golden (docs/gate.md).
+* **gate**: each re-run engine against its golden (docs/gate.md);
+* **analytic**: the reference model's tests against analytic references (`ANALYTIC_TESTS`:
+  conservation of energy and momentum, the Baumgarte decay of eq. (12), Table 2's
+  frequencies), run by pytest in the copy, for faults that reach the reference.
 
 The catch matrix goes to docs/data/faults.json and into the report.  The control fault
 ("noop_commuted_sum") changes code without changing arithmetic and must be caught by
@@ -53,6 +56,10 @@ OUT = ROOT / "docs" / "data" / "faults.json"
 #: mechanism (open/closed chain, capture-free release, bistop, orbit, thrust, growth)
 CASES = ("p1_rigid_gains", "flex_arm_step", "release", "gravity_gradient", "wrist_bistop", "thrust_burn")
 PINOCCHIO_STATES = 20
+#: the reference model's tests against analytic references (pytest node ids, ~30 s)
+ANALYTIC_TESTS = ("tests/reference_model/test_conservation.py", "tests/reference_model/test_link_modes.py")
+#: the checks of the catch matrix, in its order
+CHECKS = ("crosscheck", "pinocchio", "gate", "analytic")
 #: where the driver's copy keeps the unfaulted runs of CASES (relative to the copy's root)
 BASELINE_DIR = ".faults_baseline"
 
@@ -198,7 +205,7 @@ def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
         raise RuntimeError(f"fault {fault.name}: the probe failed:\n{proc.stderr[-3000:]}")
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     result.update(asdict(fault), wall_s=round(time.monotonic() - t0, 1))
-    result["caught_by"] = [k for k in ("crosscheck", "pinocchio", "gate") if result[k]]
+    result["caught_by"] = [k for k in CHECKS if result[k]]
     progress(f"{fault.name}: caught by {', '.join(result['caught_by']) or 'NOTHING'} "
              f"({result['wall_s']:.0f} s)")
     return result
@@ -285,7 +292,7 @@ def probe(fault: Fault) -> dict:
     """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
     engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
     variants, runs = _run_cases(engines)
-    out = {"crosscheck": [], "pinocchio": [], "gate": []}
+    out: dict[str, list[str]] = {k: [] for k in CHECKS}
     for v in variants:
         new = {e: runs[(v.name, e)] for e in engines}
         for e, r in new.items():
@@ -303,7 +310,18 @@ def probe(fault: Fault) -> dict:
             rows = run_checks(n_states=PINOCCHIO_STATES, first_seed=0, n_modes=n_modes, open_arms=(1, 2))
             out["pinocchio"] += sorted({f"{r['quantity']} ({r['chain']}, {n_modes} modes)"
                                         for r in rows if not r["pass"]})
+        out["analytic"] = _failed_tests(ANALYTIC_TESTS)
     return out
+
+
+def _failed_tests(node_ids: tuple[str, ...]) -> list[str]:
+    """The tests of `node_ids` that fail in this tree (pytest, this process's environment)."""
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rf", "-p", "no:cacheprovider", "-m", "not study",
+                           *node_ids], capture_output=True, text=True)
+    if proc.returncode not in (0, 1):  # 0 all passed, 1 some failed; anything else: not run
+        raise RuntimeError(f"the analytic tests did not run (pytest exit {proc.returncode}):\n{proc.stdout[-2000:]}")
+    return [line.split(" - ")[0].removeprefix("FAILED ").split("::")[-1]
+            for line in proc.stdout.splitlines() if line.startswith("FAILED ")]
 
 
 if __name__ == "__main__":

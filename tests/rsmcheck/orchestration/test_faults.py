@@ -56,3 +56,17 @@ def test_every_run_in_the_copy_starts_from_an_empty_numba_cache(tmp_path, monkey
     faults._in_copy(tmp_path, "probe", FAULTS[0].name)
     assert seen["cache"] == str(tmp_path / ".numba_cache") and not seen["cache_left"]
     assert seen["path"] == str(tmp_path) and seen["cwd"] == tmp_path and seen["cmd"][-2:] == ["probe", FAULTS[0].name]
+
+
+def test_failed_analytic_tests_are_named(tmp_path):
+    """The `analytic` column lists the tests that fail, by name; a pytest that could not run
+    them is an error, not a clean result."""
+    from rsmcheck.orchestration.faults import _failed_tests
+
+    f = tmp_path / "test_probe_sample.py"
+    f.write_text("def test_holds():\n    assert 1 + 1 == 2\n\n\ndef test_broken():\n    assert 1 + 1 == 3\n")
+    assert _failed_tests((str(f),)) == ["test_broken"]
+    import pytest
+
+    with pytest.raises(RuntimeError, match="did not run"):
+        _failed_tests((str(tmp_path / "no_such_file.py"),))
