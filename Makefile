@@ -32,7 +32,7 @@ study: venv
 	$(VPY) -m pytest -m study $(PYTEST_ARGS)
 
 # Fault injection (docs/gate.md): ~17 plausible bugs, each in a copy of the tree; which
-# checks catch which.  Not in CI (≈ 40 min on 2 cores); writes docs/data/faults.json.
+# checks catch which.  Not in CI (≈ 20 min on 2 cores); writes docs/data/faults.json.
 faults: venv
 	$(VPY) -m rsmcheck.orchestration.faults
 

@@ -1,6 +1,6 @@
 """Fault injection: which checks of the suite catch which plausible modelling bugs.
 
-`make faults` (not in CI; ≈ 40 min on 2 cores) = ``python -m rsmcheck.orchestration.faults``.  Each
+`make faults` (not in CI; ≈ 20 min on 2 cores) = ``python -m rsmcheck.orchestration.faults``.  Each
 fault of `FAULTS` is one textual change (an exact string that must occur once) applied to
 a temporary copy of the tree; in that copy the short variants of `CASES` are run by the
 engines the fault can affect, and three kinds of check look at them:
