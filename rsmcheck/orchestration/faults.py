@@ -150,7 +150,8 @@ def _tree_files(root: Path) -> list[str]:
 
 
 def make_copy(root: Path, dest: Path) -> Path:
-    """A copy of every tracked file (mtimes kept, so a reverted file hits numba's cache)."""
+    """A copy of every tracked file, the tree every probe runs in (each with an empty numba
+    cache, `_in_copy`)."""
     if dest.exists():
         shutil.rmtree(dest)
     for f in _tree_files(root):
