@@ -42,7 +42,6 @@ VARIANTS = ("short", "full")
 
 _CHILD = r"""
 import json, resource, sys, tempfile, time
-from rsmcheck.cases import load_case
 from rsmcheck.orchestration.bench import SOLVER_KEYS, SPLIT_KEYS, bench_cases
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.engines import make_engine
@@ -54,7 +53,7 @@ run(make_engine(engine_name, first), first, min(0.01, first.duration))  # warm-u
 t0 = time.perf_counter()
 if case.phases:
     with tempfile.TemporaryDirectory() as out:
-        result = read_run(run_case(load_case(name), [engine_name], short, out_dir=out))[0][engine_name]
+        result = read_run(run_case(name, [engine_name], short, out_dir=out))[0][engine_name]
 else:
     result = run(make_engine(engine_name, case), case, case.duration)
 wall = time.perf_counter() - t0
@@ -70,7 +69,7 @@ print(json.dumps({"case": name, "engine": engine_name, "variant": "short" if sho
 SPLIT_KEYS = ("samples", "wall_s", "wall_integrator_s", *(f"wall_{part}_s" for part in SPLIT))
 #: the engine settings and counts that decide a run's cost, stored beside its times so that
 #: a figure can be traced to what was run (the variant's own [solver] / [exudyn] settings)
-SOLVER_KEYS = ("steps", "rejected_steps", "h_max", "rtol", "step", "substeps", "n_elements", "links",
+SOLVER_KEYS = ("steps", "rejected_steps", "h_max", "rtol", "step", "substeps", "links",
                "newton_iterations", "newton_retries", "jacobians", "jacobian_per_step", "newton_atol")
 #: the parts of a control sample's wall time (`per_sample_us`), in the table's order
 PARTS = ("integrator", "engine", "sensors", "controller", "observe", "runner")

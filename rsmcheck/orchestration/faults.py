@@ -26,7 +26,7 @@ Every fault starts from an empty numba cache (compiled once in the probe's proce
 loaded by its workers).  numba keys a cached function on its own file's stamp, not on the
 files it calls into: with the copy's cache kept, the compiled integrator
 (reference_model/stepping.py) went on calling the unfaulted core.py it had been compiled
-against, and a fault of `rhs` — the mass flow of eq. (16) with the wrong g0 — left
+against, and a fault of `rhs` — the propellant's mass flow T/(Isp g0) with the wrong g0 — left
 thrust_burn's system mass exactly unchanged (918.668075676539 kg both; 918.668168535508
 with a fresh cache).
 """
