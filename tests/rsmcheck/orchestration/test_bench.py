@@ -54,3 +54,32 @@ def test_bench_run_reports_what_it_ran():
     assert "error" not in r, r
     assert abs(r["sim_s"] - 0.2) < 1e-9 and r["wall_s"] > 0 and r["peak_mb"] > 0
     assert r["solver"]["steps"] > 0 and r["split"]["samples"] == 200
+
+
+def test_phase_table_lists_each_mission_phase_per_engine():
+    """The mission's phases, each with its own × real time per engine (the issue's target
+    per phase); an engine that did not fly a phase shows a dash, not a number."""
+    from rsmcheck.orchestration.bench import phase_table
+
+    ref = dict(_run("mission", "reference", {}), phases=[{"phase": "p1", "sim_s": 50.0, "wall_s": 10.0},
+                                                         {"phase": "p2", "sim_s": 60.0, "wall_s": 30.0}])
+    exu = dict(_run("mission", "exudyn", {}), phases=[{"phase": "p1", "sim_s": 50.0, "wall_s": 25.0}])
+    lines = phase_table([ref, exu, _run("free_drift", "reference", {})], ["reference", "exudyn"]).splitlines()
+    assert len(lines) == 4, lines  # head, rule, p1, p2: a case without phases has no row
+    assert lines[2].split()[:4] == ["mission", "p1", "short", "50.00"]
+    assert lines[2].split()[-5:] == ["10.00", "5.000", "|", "25.00", "2.000"]
+    assert lines[3].split()[-2:] == ["|", "—"]
+    assert phase_table([_run("free_drift", "reference", {})], ["reference"]) == ""
+
+
+def test_jobs_must_be_a_positive_whole_number(capsys):
+    """A bad --jobs stops before any run, with the usage error (exit 2)."""
+    import pytest
+
+    from rsmcheck.orchestration.bench import main
+
+    for bad in ("0", "-1", "two"):
+        with pytest.raises(SystemExit) as stop:
+            main(["--jobs", bad, "--cases", "free_drift"])
+        assert stop.value.code == 2
+        assert "positive whole number" in capsys.readouterr().err
