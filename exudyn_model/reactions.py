@@ -252,9 +252,10 @@ def held_inputs(engine, inputs):
     mbs = engine.mbs
     loads = [(ld, "load") for ld in engine.motor_loads]
     loads += [(engine.base_torque_load, "loadVector"), (engine.thrust_load, "loadVector")]
-    objects = [(engine.base, "mass"), (engine.carrier, "forceVector")] if engine.field else []
+    objects = [(engine.carrier, "forceVector")] if engine.field else []
     old_loads = [mbs.GetLoadParameter(ld, name) for ld, name in loads]
     old_objects = [mbs.GetObjectParameter(ob, name) for ob, name in objects]
+    old_mass = engine._base_mass
     held = (tuple(np.asarray(inputs.tau_m, float)), float(inputs.tau_B), float(inputs.thrust))
     try:
         engine._set_inputs(held, copy.copy(engine._thrust_inertia) if engine.field else None)
@@ -264,6 +265,7 @@ def held_inputs(engine, inputs):
             mbs.SetLoadParameter(ld, name, val)
         for (ob, name), val in zip(objects, old_objects):
             mbs.SetObjectParameter(ob, name, val)
+        engine._set_base_mass(old_mass)  # the base and the integrator's mass matrix
 
 
 def grasp_forces(engine, inputs=None) -> np.ndarray:

@@ -219,11 +219,27 @@ class SteppingMixin:
             # (docs/exudyn.md §5, item 5); at the middle 1/m misses its mean by O(span²).
             dm_half = 0.5 * span * self._mass_flow(thrust)
             m_base = self._mass_base() - dm_half
-            mbs.SetObjectParameter(self.base, "mass", m_base)
+            self._set_base_mass(m_base)
             tidal = self._tidal_forces(q + 0.5 * span * v, self.r_O + 0.5 * span * self.v_O, m_base)
             thrust_inertia.hold(tidal, self._uniform_field_matrix(m_base), thrust / (self._com(q)[1] - dm_half),
                                 self.t)
             mbs.SetObjectParameter(self.carrier, "forceVector", thrust_inertia.forces(q[self.i_base[2]]))
+
+    def _set_base_mass(self, mass: float) -> None:
+        """Give the base the mass `mass` [kg] and the solver the mass matrix with it.
+
+        The solver computes the system mass matrix once (`reuseConstantMassMatrix`, set in
+        `_settings`) and keeps it; the base's mass, which the thrust burns down (physics.md
+        §5), is the only one that changes, and every change of it comes through here and is
+        followed by `PostInitializeSolverSpecific`, which recomputes the stored matrix (for
+        this model it does nothing else: there are no Lie-group nodes).  The next Newton
+        residual uses the new mass, as it did when the matrix was recomputed at every
+        residual; runs are identical to the last bit (docs/exudyn.md §4)."""
+        if mass == self._base_mass:
+            return
+        self.mbs.SetObjectParameter(self.base, "mass", mass)
+        self.solver.PostInitializeSolverSpecific(self.mbs, self.settings)
+        self._base_mass = mass
 
     def _is_step(self, held) -> bool:
         """True when the inputs jump by more than `restart_threshold` of their limits (or
