@@ -126,3 +126,19 @@ def test_stored_bench_shows_where_each_run_spent_its_time(rendered, tmp_path):
     assert "µs per control sample" in page
     row = page[page.index('<td class="l">p4_hohmann</td><td class="l">reference</td><td>1000</td>'):]
     assert row.split("</tr>")[0].count("<td>") == 8 and ">500<" in row.split("</tr>")[0]
+
+
+def test_stored_bench_shows_the_mission_phases(rendered, tmp_path):
+    """A bench of the mission gets a row per phase and engine with its own × real time; the
+    header says how many runs shared the machine."""
+    bench = {"command": "rsmcheck bench --jobs 2", "commit": "abc", "utc": "now", "engines": ["reference"],
+             "jobs": 2, "runs": [{"case": "mission", "engine": "reference", "variant": "full", "wall_s": 40.0,
+                                  "sim_s": 100.0, "peak_mb": 200.0,
+                                  "phases": [{"phase": "p1_transport", "sim_s": 60.0, "wall_s": 30.0},
+                                             {"phase": "p2_capture_regrasp", "sim_s": 40.0, "wall_s": 10.0}]}]}
+    (tmp_path / "bench_full.json").write_text(json.dumps(bench))
+    page = render(rendered.folder, tmp_path / "page.html", ["free_drift"], data_dir=tmp_path).read_text()
+    assert "2 runs at a time" in page
+    row = page[page.index('<td class="l">p2_capture_regrasp</td>'):].split("</tr>")[0]
+    assert '<td class="l">full</td><td class="l">reference</td>' in row
+    assert [cell.split("<")[0] for cell in row.split("<td>")[1:]] == ["40", "10", "4"]
