@@ -265,6 +265,13 @@ def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory 
     return pieces, state
 
 
+#: the solver entries that count (each phase's engine counts from zero): summed over the
+#: phases of a chained run, as are the wall times; the other entries are settings, the first
+#: phase's (until 2026-11-25 only steps and samples were summed: the Newton iterations,
+#: Jacobians and retries of a chained run were its first phase's)
+COUNTS = ("steps", "rejected_steps", "samples", "newton_iterations", "newton_retries", "jacobians", "restarts")
+
+
 def _concatenate(engine: str, pieces: list[tuple[float, EngineRun]]) -> EngineRun:
     obs = {}
     for key in NAMES:
@@ -278,7 +285,7 @@ def _concatenate(engine: str, pieces: list[tuple[float, EngineRun]]) -> EngineRu
     solver: dict[str, Any] = {}
     for off, r in pieces:
         for k, v in r.solver.items():
-            if (k in ("steps", "rejected_steps", "samples") or k.startswith("wall_")) and k in solver:
+            if (k in COUNTS or k.startswith("wall_")) and k in solver:
                 solver[k] += v
             else:
                 solver.setdefault(k, v)

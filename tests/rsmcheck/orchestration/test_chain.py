@@ -1,0 +1,29 @@
+"""rsmcheck.orchestration.chain: what a chained run (the mission) stores of its phases."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rsmcheck.observables import NAMES
+from rsmcheck.orchestration.chain import _concatenate
+from rsmcheck.store import EngineRun
+
+
+def _phase(duration: float, solver: dict) -> EngineRun:
+    obs = {key: np.zeros(3) for key in NAMES}
+    obs["time"] = np.array([0.0, 0.5 * duration, duration])
+    return EngineRun(engine="exudyn", observables=obs, solver=solver)
+
+
+def test_a_chained_run_counts_the_work_of_all_its_phases():
+    """Each phase's engine counts its steps, Newton iterations, Jacobians and retries from
+    zero: the chained run's counts and wall times are the sums, its settings the first
+    phase's (the mission's Newton iterations once were p1's alone)."""
+    first = {"steps": 10, "samples": 5, "newton_iterations": 12, "jacobians": 2, "newton_retries": 0,
+             "restarts": 1, "wall_s": 1.5, "substeps": 2, "links": "ANCFCable2D x 8"}
+    second = {"steps": 20, "samples": 10, "newton_iterations": 31, "jacobians": 3, "newton_retries": 1,
+              "restarts": 4, "wall_s": 2.0, "substeps": 2, "links": "ANCFCable2D x 8"}
+    run = _concatenate("exudyn", [(0.0, _phase(1.0, first)), (1.0, _phase(2.0, second))])
+    assert run.solver == {"steps": 30, "samples": 15, "newton_iterations": 43, "jacobians": 5, "newton_retries": 1,
+                          "restarts": 5, "wall_s": 3.5, "substeps": 2, "links": "ANCFCable2D x 8"}
+    np.testing.assert_array_equal(run.observables["time"], [0.0, 0.5, 1.0, 1.0, 2.0, 3.0])
