@@ -10,10 +10,10 @@ wall seconds (`phases`).  Beside the times, each run records the settings and co
 them (`SOLVER_KEYS`: steps, Newton iterations, Jacobians).  `--jobs 2` runs two of these
 processes at a time (on the 2-core machine: the engines side by side, as the full-length
 flights of docs/cases.md were measured); the runs keep the order they were listed in.
-Reported per run: simulated
-seconds, wall seconds, simulated seconds per wall second (× real time), peak memory; a run
-that fails is reported with its error and the others go on (in the JSON, `--json` and
-`--out`, its numbers are null: the document is strict JSON, `store.dumps_json`).
+Reported per run: simulated seconds, wall seconds, simulated seconds per wall second (×
+real time), peak memory; a run that fails is reported with its error and the others go on
+(in the JSON, `--json` and `--out`, its numbers are null: the document is strict JSON,
+`store.dumps_json`).
 
 `rhs_us`: the cost of one evaluation of the equations of motion,
 * `reference_compiled` — one reference right-hand side inside a compiled loop (what the
@@ -184,7 +184,7 @@ def table(doc: dict) -> str:
 
 def phase_table(runs: Sequence[dict], engines: Sequence[str]) -> str:
     """Each phase of a chained mission run: its simulated seconds, and per engine its wall
-    seconds and × real time (the issue's "each phase ≥ 20× real time" is read here)."""
+    seconds and × real time (where README's target "each phase ≥ 20 × real time" is read)."""
     rows: dict[tuple[str, str, str], dict[str, dict]] = {}
     for r in runs:
         for p in r.get("phases") or []:
