@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from rsmcheck.orchestration.bench import per_sample_us, split_table
+import pytest
+
+from rsmcheck.cases import load_case
+from rsmcheck.orchestration.bench import bench_cases, bench_run, main, per_sample_us, phase_table, split_table
 
 
 def _run(case, engine, split):
@@ -33,9 +36,6 @@ def test_bench_times_the_variant_that_check_runs():
     """`--variant short` times each case's [short] variant with its own segments and engine
     settings (motor_step's short run keeps modified Newton; its full run takes a Jacobian
     per step), not the full case cut at the short duration."""
-    from rsmcheck.cases import load_case
-    from rsmcheck.orchestration.bench import bench_cases
-
     full = load_case("motor_step")
     timed, warm = bench_cases("motor_step", short=True)
     assert timed is warm and timed.duration == full.short_duration
@@ -48,8 +48,6 @@ def test_bench_times_the_variant_that_check_runs():
 
 def test_bench_run_reports_what_it_ran():
     """A real (short, cheap) run in a fresh process: its numbers and the settings behind them."""
-    from rsmcheck.orchestration.bench import bench_run
-
     r = bench_run("p1_rigid_gains", "reference", "short")
     assert "error" not in r, r
     assert abs(r["sim_s"] - 0.2) < 1e-9 and r["wall_s"] > 0 and r["peak_mb"] > 0
@@ -57,10 +55,8 @@ def test_bench_run_reports_what_it_ran():
 
 
 def test_phase_table_lists_each_mission_phase_per_engine():
-    """The mission's phases, each with its own × real time per engine (the issue's target
+    """The mission's phases, each with its own × real time per engine (README's speed target
     per phase); an engine that did not fly a phase shows a dash, not a number."""
-    from rsmcheck.orchestration.bench import phase_table
-
     ref = dict(_run("mission", "reference", {}), phases=[{"phase": "p1", "sim_s": 50.0, "wall_s": 10.0},
                                                          {"phase": "p2", "sim_s": 60.0, "wall_s": 30.0}])
     exu = dict(_run("mission", "exudyn", {}), phases=[{"phase": "p1", "sim_s": 50.0, "wall_s": 25.0}])
@@ -74,10 +70,6 @@ def test_phase_table_lists_each_mission_phase_per_engine():
 
 def test_jobs_must_be_a_positive_whole_number(capsys):
     """A bad --jobs stops before any run, with the usage error (exit 2)."""
-    import pytest
-
-    from rsmcheck.orchestration.bench import main
-
     for bad in ("0", "-1", "two"):
         with pytest.raises(SystemExit) as stop:
             main(["--jobs", bad, "--cases", "free_drift"])

@@ -4,9 +4,13 @@ Exudyn model and the shared inputs, and one control fault changes no arithmetic.
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
-from rsmcheck.orchestration.faults import FAULTS, ROOT, apply, revert
+import pytest
+
+import rsmcheck.orchestration.faults as faults
+from rsmcheck.orchestration.faults import FAULTS, ROOT, _failed_tests, apply, revert
 
 
 def test_every_fault_applies_exactly_once():
@@ -38,10 +42,6 @@ def test_apply_and_revert_on_a_copy(tmp_path):
 def test_every_run_in_the_copy_starts_from_an_empty_numba_cache(tmp_path, monkeypatch):
     """numba keys a cached function on its own file, not on the files it calls: a cache kept
     from an unfaulted run hid faults of core.py's `rhs` behind the cached integrator."""
-    import subprocess
-
-    import rsmcheck.orchestration.faults as faults
-
     stale = tmp_path / ".numba_cache" / "reference_model_x" / "stepping.dp5.nbi"
     stale.parent.mkdir(parents=True)
     stale.write_text("compiled against the unfaulted core")
@@ -61,12 +61,8 @@ def test_every_run_in_the_copy_starts_from_an_empty_numba_cache(tmp_path, monkey
 def test_failed_analytic_tests_are_named(tmp_path):
     """The `analytic` column lists the tests that fail, by name; a pytest that could not run
     them is an error, not a clean result."""
-    from rsmcheck.orchestration.faults import _failed_tests
-
     f = tmp_path / "test_probe_sample.py"
     f.write_text("def test_holds():\n    assert 1 + 1 == 2\n\n\ndef test_broken():\n    assert 1 + 1 == 3\n")
     assert _failed_tests((str(f),)) == ["test_broken"]
-    import pytest
-
     with pytest.raises(RuntimeError, match="did not run"):
         _failed_tests((str(tmp_path / "no_such_file.py"),))
