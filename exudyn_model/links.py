@@ -8,8 +8,8 @@ only (docs/physics.md §2):
 
     massPerLength = ρA,  bendingStiffness = EI,  axialStiffness = EA = axial_to_bending·EI,
     bendingDamping = η·EI (Kelvin–Voigt, the damping law of docs/physics.md §2.2),
-    axialDamping = η·EA (the reference is axially rigid; this only damps the ~0.7 kHz
-    axial mode that has no counterpart there).
+    axialDamping = η·EA (the reference is axially rigid; this damps the axial modes,
+    2.3–4.6 kHz at the default EA = 1e5·EI, that have no counterpart there).
 
 The cable element carries no rotary inertia of the cross-section (its mass matrix is the
 consistent ρA ∫SᵀS, positive definite), so J_extra of docs/physics.md §2.3 is not in the

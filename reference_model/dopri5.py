@@ -3,8 +3,10 @@ control (numba), the default for every case (docs/physics.md §7).
 
 Seven stages, the 7th evaluated at the 5th-order solution (first same as last: six new
 right-hand sides `core.rhs` per step); the embedded 4th-order solution gives the error
-estimate per component.  The highest frequencies of the flexible model bound its step near
-2.5 ms (stability); for quiet, stiff phases a case may choose TR-BDF2 (`trbdf2.py`).
+estimate per component.  The highest frequencies of the flexible model bound its step by
+stability: near 0.46 ms with the static correction shapes (their 0.8–1.1 kHz Ritz modes,
+the default), near 2.5 ms without them (the 160 Hz link modes); for quiet, stiff phases a
+case may choose TR-BDF2 (`trbdf2.py`).
 """
 
 from __future__ import annotations

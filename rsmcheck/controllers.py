@@ -4,10 +4,11 @@ A controller maps the `Sensors` of one sample to the `Inputs` held until the nex
 applies the saturations of Tables 3–4 (|τ_B| ≤ 12 N·m, |τ_m| ≤ 80 N·m).  The laws:
 
 * base attitude, eq. (13):   τ_B = −k_p,B (θ_B − θ_B^des) − k_d,B (θ̇_B − θ̇_B^des)
-* arms, eq. (14):            τ_m,j = −K_p,j J_EE,jᵀ e_EE,j − K_d,j θ̇_J,j
-  e_EE = (x − x_des, y − y_des, φ − φ_des): end-effector position in the base frame
-  (about the base COM) and terminal-link attitude φ = θ_J1 + θ_J2 + θ_J3 relative to the
-  base.  J_EE (3×3) comes from the controller's **own rigid kinematic model** of the arm
+* arms, eq. (14):            τ_m,j = −K_p,j J_EE,jᵀ e_EE,j − K_d,j r_j
+  with r the link-side joint rates ψ̇_J (the end-section encoders) or their first-order
+  low-pass (`rate_filter_hz`); e_EE = (x − x_des, y − y_des, φ − φ_des): end-effector
+  position in the base frame (about the base COM) and terminal-link attitude
+  φ = ψ_J1 + ψ_J2 + ψ_J3 relative to the base.  J_EE (3×3) comes from the controller's **own rigid kinematic model** of the arm
   (`ArmModel`: mount point and link lengths from `Params`, links straight) — a controller
   knows its nominal geometry, not the deflected shape.  The position in e_EE is either the
   measured end effector (`feedback = "measured"`, default: the deflected tip, as a camera

@@ -3,7 +3,7 @@
 `make faults` (not in CI; ≈ 20 min on 2 cores) = ``python -m rsmcheck.orchestration.faults``.  Each
 fault of `FAULTS` is one textual change (an exact string that must occur once) applied to
 a temporary copy of the tree; in that copy the short variants of `CASES` are run by the
-engines the fault can affect, and three kinds of check look at them:
+engines the fault can affect, and four kinds of check look at them:
 
 * **cross-check**: the case's `[compare]` rows, reference against Exudyn.  When only one
   engine is faulted, the other engine's run is its unfaulted *baseline* run: both engines

@@ -3,7 +3,7 @@
 * `rigid_step_study`: rigid links in both engines (reference with 0 modes, Exudyn with
   `rigid=True`), every observable of each case, for a sequence of generalized-α steps
   h = control period / substeps.  The difference is then the integrators' only: the
-  reference (Dormand–Prince 5(4), rtol 1e-9) is checked against itself at rtol 1e-11, and
+  reference (Dormand–Prince 5(4), rtol 1e-12) is checked against itself at rtol 1e-11, and
   the Exudyn error must fall as h² (generalized-α is second order; the obstacle is the
   phase of the undamped 92 Hz rotor ripple, docs/exudyn.md §4).
 * `convergence_study`: flexible links, reference with 1…4 modes per link against Exudyn
