@@ -267,8 +267,7 @@ def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory 
 
 #: the solver entries that count (each phase's engine counts from zero): summed over the
 #: phases of a chained run, as are the wall times; the other entries are settings, the first
-#: phase's (until 2026-11-25 only steps and samples were summed: the Newton iterations,
-#: Jacobians and retries of a chained run were its first phase's)
+#: phase's
 COUNTS = ("steps", "rejected_steps", "samples", "newton_iterations", "newton_retries", "jacobians", "restarts")
 
 
