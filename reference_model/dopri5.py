@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 
 from reference_model.core import rhs
+from reference_model.integration import accepted_step, rejected_step
 
 # --- the Dormand–Prince 5(4) tableau: nodes c, stages a, 5th-order weights b, error weights e = b − b̂
 _C = np.array([0.0, 1.0 / 5, 3.0 / 10, 4.0 / 5, 8.0 / 9, 1.0, 1.0])
@@ -80,26 +81,15 @@ def integrate_dopri5(x0, t0, t1, h, rtol, atol, hmax, u, m, sw):
             nrej += 1
             rejected = True
             continue
-        # PI step-size control: h_new = h · 0.9 err^(−0.17) err_old^(0.04)
-        f11 = err ** 0.17 if err > 0.0 else 0.0
         if err <= 1.0:
-            fac = f11 / err_old ** 0.04 / 0.9
-            fac = min(5.0, max(0.1, fac))  # h grows at most ×10, shrinks at most ×5
-            err_old = max(err, 1e-4)
             t = t1 if last else t + h
             x = xn
             K[0] = K[6]
             nacc += 1
-            h_next = h / fac
-            if rejected:
-                h_next = min(h_next, h)  # no growth right after a rejection
+            h, err_old = accepted_step(h, h_nominal, err, err_old, rejected, last, hmax)
             rejected = False
-            if last:
-                h = min(h_nominal, hmax)  # the clipped last step says nothing about the next
-            else:
-                h = min(h_next, hmax)
         else:
-            h /= min(5.0, f11 / 0.9)
+            h = rejected_step(h, err)
             nrej += 1
             rejected = True
             if h < 1e-13:

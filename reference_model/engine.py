@@ -31,7 +31,7 @@ from rsmcheck.store import package_versions
 
 H_MAX = 0.05  # s, explicit DP5(4): stability bounds h near 2.5 ms anyway
 H_MAX_IMPLICIT = 1.0  # s, TR-BDF2 in quiet phases
-INTEGRATORS = ("dopri5", "trbdf2")
+INTEGRATORS = ("dopri5", "trbdf2", "imex")
 
 
 class ReferenceEngine(SteppingMixin):
@@ -75,6 +75,7 @@ class ReferenceEngine(SteppingMixin):
         self._jac = np.zeros((n, n))
         self._minv = np.zeros((n, n))
         self._work = np.zeros(N_WORK)
+        self._imex_setup()  # stepping.py
         self.capture_arm = case.capture.arm
         self.capture_point = np.asarray(self.params.geometry.grasp_T(case.capture.arm), float)
 
@@ -142,7 +143,8 @@ class ReferenceEngine(SteppingMixin):
 
     def solver_settings(self) -> dict:
         names = {"dopri5": "Dormand-Prince 5(4), embedded error control",
-                 "trbdf2": "TR-BDF2 (L-stable ESDIRK), embedded 3rd-order error estimate"}
+                 "trbdf2": "TR-BDF2 (L-stable ESDIRK), embedded 3rd-order error estimate",
+                 "imex": "ARK4(3)6L[2]SA IMEX (stiff shapes implicit), embedded error control"}
         return {"integrator": names[self.integrator], "rtol": self.rtol,
                 "h_max": self.h_max,
                 "jacobians": self._jacobians(),

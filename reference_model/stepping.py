@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from reference_model import core
+from reference_model import imex
 from reference_model.dopri5 import integrate_dopri5
 from reference_model.trbdf2 import W_HAVE_J, W_JACOBIANS, integrate_trbdf2
 from rsmcheck.engine import Inputs
@@ -71,6 +72,10 @@ class SteppingMixin:
         if self.integrator == "dopri5":
             x, h, nacc, nrej, status = integrate_dopri5(
                 self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, u, *args)
+        elif self.integrator == "imex":
+            x, h, nacc, nrej, status = imex.integrate_ark(
+                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, self._stiff, self._L,
+                self._Winv, self._imex_work, imex.REFRESH_S, u, *args)
         else:
             x, h, nacc, nrej, status = integrate_trbdf2(
                 self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, self._jac,
@@ -84,9 +89,25 @@ class SteppingMixin:
                                      + ("non-finite" if status == 1 else "step size underflow"), float(x[bad]))
         self.x, self.h, self.t = x, h, t_next
 
+    def _imex_setup(self) -> None:
+        """The IMEX integrator's stiff components and the storage of L, W⁻¹ (imex.py)."""
+        lay = self.model.layout
+        arrays = self.model.arrays
+        k_diag, m_diag = [], []
+        for i, n in enumerate(lay.n_modes):
+            b = self.cfg.basis[i]
+            k_diag.append(np.diag(arrays.k_ff[i, b])[:n])
+            m_diag.append(np.diag(arrays.m_ff[i, b])[:n])
+        self._stiff = imex.stiff_indices(k_diag, m_diag, lay.mode_offset, lay.ns)
+        n_s = self._stiff.shape[0]
+        self._L = np.zeros((lay.nx, n_s))
+        self._Winv = np.zeros((n_s, n_s))
+        self._imex_work = np.zeros(imex.N_WORK)
+
     def _new_system(self) -> None:
         """The system changed (a capture or release): the next implicit step needs a new Jacobian."""
         self._work[W_HAVE_J] = 0.0
+        self._imex_work[imex.W_HAVE_L] = 0.0
 
     def _jacobians(self) -> int:
         """TR-BDF2 Jacobians computed so far."""

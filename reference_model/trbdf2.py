@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from reference_model.core import rhs
+from reference_model.integration import jacobian_columns
 
 _GAMMA = 2.0 - math.sqrt(2.0)
 _D = 0.5 * _GAMMA
@@ -50,21 +51,6 @@ def _norm(v, x, rtol, atol):
     for c in range(v.shape[0]):
         m = max(m, abs(v[c]) / (atol[c] + rtol * abs(x[c])))
     return m
-
-
-@njit(cache=True)
-def _jacobian(x, f0, u, m, sw, atol, rtol):
-    n = x.shape[0]
-    J = np.empty((n, n))
-    xp = x.copy()
-    for c in range(n):
-        # perturbation: √ε relative to the component's size or its tolerance scale
-        e = 1.5e-8 * max(abs(x[c]), atol[c] / rtol)
-        xp[c] = x[c] + e
-        fp = rhs(xp, u, m, sw)
-        J[:, c] = (fp - f0) / e
-        xp[c] = x[c]
-    return J
 
 
 @njit(cache=True)
@@ -100,7 +86,7 @@ def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, m, sw):
     k1 = rhs(x, u, m, sw)
     fresh = False
     if work[W_HAVE_J] == 0.0:
-        J[:, :] = _jacobian(x, k1, u, m, sw, atol, rtol)
+        J[:, :] = jacobian_columns(x, k1, u, m, sw, np.arange(n), atol, rtol)
         work[W_HAVE_J] = 1.0
         work[W_H_OF_MINV] = -1.0
         work[W_JACOBIANS] += 1.0
@@ -126,7 +112,7 @@ def integrate_trbdf2(x0, t0, t1, h, rtol, atol, hmax, J, Minv, work, u, m, sw):
             work[W_NEWTON_FAILURES] += 1.0
             nrej += 1
             if not fresh:  # first remedy: a new Jacobian at the current state
-                J[:, :] = _jacobian(x, k1, u, m, sw, atol, rtol)
+                J[:, :] = jacobian_columns(x, k1, u, m, sw, np.arange(n), atol, rtol)
                 work[W_H_OF_MINV] = -1.0
                 work[W_JACOBIANS] += 1.0
                 fresh = True

@@ -153,7 +153,7 @@ class SolverSpec:
     control_period: float = 1e-3
     output_period: float = 1e-2
     rtol: float = 1e-9
-    integrator: str = "dopri5"  # the reference engine's: dopri5 | trbdf2
+    integrator: str = "dopri5"  # the reference engine's: dopri5 | trbdf2 | imex
 
     @property
     def output_every(self) -> int:
@@ -588,7 +588,7 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         "control_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True, hi=0.1),
         "output_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
         "rtol": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
-        "integrator": lambda k, v: _choice(w, k, v, ("dopri5", "trbdf2")),
+        "integrator": lambda k, v: _choice(w, k, v, ("dopri5", "trbdf2", "imex")),
     }))
     ratio = solver.output_period / solver.control_period
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:

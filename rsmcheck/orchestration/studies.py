@@ -12,6 +12,11 @@
 * `refinement_study`: the rows of a case's own `[compare]` table (error against its
   tolerance) for reference modes × Exudyn (step, EA/EI): which refinement of which engine
   brings a case to its tolerance (docs/exudyn.md §8, motor_step and release).
+* `integrator_study`: the reference's integrators at equal footing: each (integrator,
+  rtol) of a grid on a case's short variant against a Dormand–Prince solution at rtol
+  1e-10, the error of every row of the case's `[compare]` table beside the wall time and
+  the steps per control sample — what an integrator buys is judged at equal accuracy
+  (benchmarks/README.md, "An L-stable integrator at equal accuracy").
 * `orbit_study`: what flying in orbit changes in a mission phase: the phase's short
   variant with and without its `[orbit]` (reference engine; without it the base holds its
   attitude instead of tracking the retrograde direction), the largest difference of each
@@ -20,7 +25,8 @@
 Run: `python -m rsmcheck.orchestration.studies rigid [CASE…]`,
 `python -m rsmcheck.orchestration.studies convergence`,
 `python -m rsmcheck.orchestration.studies refinement CASE --modes 2,4 --exudyn 32:1e5,256:1e6`,
-`python -m rsmcheck.orchestration.studies orbit [CASE…]`.
+`python -m rsmcheck.orchestration.studies orbit [CASE…]`,
+`python -m rsmcheck.orchestration.studies integrators CASE --grid dopri5:1e-7,imex:1e-7,imex:1e-8`.
 The Exudyn numbers come from Exudyn alone (`exudyn_model` never imports the reference);
 this module only compares the two.
 """
@@ -284,6 +290,52 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
     return doc
 
 
+#: the reference solution of `integrator_study`
+TIGHT = ("dopri5", 1e-10)
+
+
+def integrator_study(case_name: str, grid: Sequence[tuple[str, float]], out: Path | None = None,
+                     log=None) -> dict[str, Any]:
+    """The case's short variant in the reference with each (integrator, rtol) of `grid`:
+    wall seconds, steps and rejected steps per control sample, and max_t |x − x_tight| of
+    every observable of the case's `[compare]` table, x_tight from Dormand–Prince at rtol
+    1e-10 (`TIGHT`).  Wall times are one run each, on whatever the machine is doing: read
+    them as ratios within one study."""
+    case = load_case(case_name).variant(True)
+    rows = [c.observable for c in case.compare]
+    tight, w = _run("reference", case, case.duration, integrator=TIGHT[0], rtol=TIGHT[1])
+    doc: dict[str, Any] = {"study": "integrators: the case's [compare] rows against Dormand–Prince at rtol 1e-10",
+                           "case": case_name, "duration": case.duration, "tight_wall_s": w, "runs": []}
+    for integrator, rtol in grid:
+        r, w = _run("reference", case, case.duration, integrator=integrator, rtol=rtol)
+        n = r.solver["samples"]
+        errors = {o: float(np.max(np.abs(np.asarray(r.observables[o], float)
+                                         - np.asarray(tight.observables[o], float)))) for o in rows}
+        doc["runs"].append({"integrator": integrator, "rtol": rtol, "wall_s": w,
+                            "steps_per_sample": r.solver["steps"] / n,
+                            "rejected_per_sample": r.solver["rejected_steps"] / n, "error": errors})
+        if log:
+            log(f"{case_name} {integrator} rtol {rtol:g}: {w:.2f} s, {r.solver['steps'] / n:.2f} steps/sample | "
+                + "  ".join(f"{o} {e:.2e}" for o, e in errors.items()))
+        _write(out, doc)
+    return doc
+
+
+def _integrator_grid(text: str) -> list[tuple[str, float]]:
+    """'dopri5:1e-7,imex:1e-8' -> [("dopri5", 1e-7), ("imex", 1e-8)] (an argparse type)."""
+    grid = []
+    for item in text.split(","):
+        name, _, rtol = item.partition(":")
+        try:
+            value = float(rtol)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{item!r} is not INTEGRATOR:RTOL (e.g. imex:1e-8)") from None
+        if name not in ("dopri5", "trbdf2", "imex") or not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"{item!r}: the integrator is dopri5, trbdf2 or imex, rtol finite and > 0")
+        grid.append((name, value))
+    return grid
+
+
 def _exudyn_grid(text: str) -> list[tuple[int, float]]:
     """'32:1e5,256:1e6' -> [(32, 1e5), (256, 1e6)] (an argparse type: a bad item is a
     one-line usage error)."""
@@ -336,6 +388,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     o.add_argument("cases", nargs="*", default=list(MISSION_PHASES))
     o.add_argument("--out", default=str(DATA_DIR / "orbit_effect.json"))
     o.add_argument("--with-runs", help="folder of short run files (rsmcheck check --short --out) to take the runs in orbit from")
+    g = sub.add_parser("integrators")
+    g.add_argument("case")
+    g.add_argument("--grid", type=_integrator_grid, default=_integrator_grid("dopri5:1e-7,imex:1e-7,imex:1e-8"),
+                   help="INTEGRATOR:RTOL pairs, comma-separated")
+    g.add_argument("--out")
     a = p.parse_args(argv)
 
     def log(msg: str) -> None:
@@ -350,6 +407,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                              out=out, log=log, exudyn_options={"constraints": a.constraints})
         elif a.study == "orbit":
             orbit_study(a.cases, out=Path(a.out), log=log, with_runs=Path(a.with_runs) if a.with_runs else None)
+        elif a.study == "integrators":
+            out = Path(a.out) if a.out else DATA_DIR / f"integrators_{a.case}.json"
+            integrator_study(a.case, a.grid, out=out, log=log)
         elif a.study == "refinement":
             out = Path(a.out) if a.out else DATA_DIR / f"refinement_{a.case}.json"
             refinement_study(a.case, a.modes, a.exudyn, out=out, log=log)

@@ -8,7 +8,7 @@ import math
 import pytest
 
 from rsmcheck.cases import load_case
-from rsmcheck.orchestration.studies import _exudyn_grid, main, refinement_study
+from rsmcheck.orchestration.studies import _exudyn_grid, _integrator_grid, integrator_study, main, refinement_study
 
 
 def test_exudyn_grid_reads_substeps_and_axial_stiffness():
@@ -48,3 +48,28 @@ def test_refinement_study_records_every_compare_row(tmp_path):
     assert all(math.isfinite(e) and e > 0 for e in rows.values())
     assert doc["errors"]["1,2,10000"] != doc["errors"]["1,2,100000"]
     assert json.loads(out.read_text())["errors"] == doc["errors"]
+
+
+def test_integrator_grid_reads_integrator_and_rtol():
+    assert _integrator_grid("dopri5:1e-7,imex:1e-8") == [("dopri5", 1e-7), ("imex", 1e-8)]
+
+
+@pytest.mark.parametrize("text", ["dopri5", "rk4:1e-7", "imex:x", "imex:0", "imex:nan"])
+def test_integrator_grid_rejects_bad_items(text):
+    with pytest.raises(Exception, match="INTEGRATOR:RTOL|the integrator is"):
+        _integrator_grid(text)
+
+
+def test_integrator_study_measures_each_rtol_against_the_tight_solution(tmp_path):
+    """p1_rigid_gains' short variant (0.2 s): the tight Dormand–Prince solution against
+    itself is exact, a looser rtol leaves a larger error than a tighter one on every
+    [compare] row, and the record is complete JSON with steps per control sample."""
+    out = tmp_path / "integrators.json"
+    doc = integrator_study("p1_rigid_gains", [("dopri5", 1e-10), ("dopri5", 1e-6), ("imex", 1e-8)], out=out)
+    rows = [c.observable for c in load_case("p1_rigid_gains").short.compare]
+    exact, loose, imex = doc["runs"]
+    assert set(exact["error"]) == set(rows)
+    assert all(v == 0.0 for v in exact["error"].values())  # the same integrator at the same rtol
+    assert all(loose["error"][o] > imex["error"][o] > 0.0 for o in rows), (loose["error"], imex["error"])
+    assert exact["steps_per_sample"] >= 1.0 and imex["rejected_per_sample"] >= 0.0
+    assert json.loads(out.read_text())["runs"][2]["integrator"] == "imex"

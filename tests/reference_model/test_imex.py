@@ -1,0 +1,180 @@
+"""The IMEX integrator (reference_model/imex.py, ARK5(4)8L[2]SA, the stiff shapes implicit).
+
+What must hold: the tableau is the published one (its order conditions hold to round-off:
+explicit, implicit and coupled to 4th order, each tableau to 5th); it solves the same ODE
+as Dormand–Prince (agreement at the tolerance level, the error shrinking with rtol); the
+stiff set S is the static shapes (and the highest eigenmodes) in both bases; and it does
+what it is for: with the static shapes' 0.8–0.9 kHz modes in the model it takes one step
+per 1 ms control sample where the explicit pair needs two or more.  The measurement that
+it does not pay at the suite's accuracy rests on these (benchmarks/README.md).  Step
+counts are deterministic and can be asserted; wall time is not (benchmarks/).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from reference_model import imex
+from reference_model.beam_modes import PF, PP
+from reference_model.engine import ReferenceEngine
+from rsmcheck import runner
+from rsmcheck.cases import load_case
+from rsmcheck.engine import Inputs
+
+A_E, A_I, B, B_HAT, C = imex._AE, imex._AI, imex._B, imex._BHAT, imex._C
+
+DYNAMIC = """
+description = "open chain with rates: links and rotors ring"
+duration = 1.0
+[initial]
+base_rate = [0.0, 0.0, 0.05]
+joint_rates = [0.05, -0.05, 0.05, -0.05, 0.05, -0.05]
+grasp = [1, 0]
+[solver]
+control_period = 1e-3
+output_period = 1e-2
+rtol = 1e-7
+"""
+
+
+def _advance(engine: ReferenceEngine, t_end: float, dt: float, tau: float = 0.0) -> np.ndarray:
+    """Advance with a held motor torque on arm 2's shoulder (a step at t = 0)."""
+    tau_m = np.zeros(6)
+    tau_m[3] = tau
+    for k in range(int(round(t_end / dt))):
+        engine.advance((k + 1) * dt, Inputs(tau_m=tau_m))
+    return engine.x
+
+
+# ---- the tableau -----------------------------------------------------------------
+def test_tableaux_are_consistent_and_share_their_nodes():
+    for a in (A_E, A_I):
+        np.testing.assert_allclose(a.sum(axis=1), C, atol=1e-15)
+    assert np.all(np.triu(A_E) == 0.0)  # explicit
+    assert np.all(np.diag(A_I)[1:] == imex._GAMMA) and A_I[0, 0] == 0.0  # ESDIRK
+    np.testing.assert_array_equal(A_I[-1], B)  # stiffly accurate
+
+
+@pytest.mark.parametrize("pair", list(itertools.product((A_E, A_I), repeat=2)))
+def test_fourth_order_conditions_hold_for_every_combination_of_the_tableaux(pair):
+    """Additive RK order conditions up to order 4 (Kennedy & Carpenter 2003, Table 1):
+    every product of A's may be either tableau."""
+    a1, a2 = pair
+    conditions = {
+        "b·1 = 1": (B.sum(), 1.0),
+        "b·c = 1/2": (B @ C, 1 / 2),
+        "b·c² = 1/3": (B @ C**2, 1 / 3),
+        "b·A c = 1/6": (B @ a1 @ C, 1 / 6),
+        "b·c³ = 1/4": (B @ C**3, 1 / 4),
+        "b·(c∘A c) = 1/8": (B @ (C * (a1 @ C)), 1 / 8),
+        "b·A c² = 1/12": (B @ a1 @ C**2, 1 / 12),
+        "b·A A c = 1/24": (B @ a1 @ a2 @ C, 1 / 24),
+    }
+    for name, (value, exact) in conditions.items():
+        assert value == pytest.approx(exact, abs=1e-12), name
+
+
+@pytest.mark.parametrize("a", (A_E, A_I))
+def test_each_tableau_is_fifth_order(a):
+    """The nine conditions of the order-5 trees for one Runge–Kutta tableau."""
+    ac = a @ C
+    conditions = {
+        "b·c⁴ = 1/5": (B @ C**4, 1 / 5),
+        "b·(c²∘Ac) = 1/10": (B @ (C**2 * ac), 1 / 10),
+        "b·(c∘Ac²) = 1/15": (B @ (C * (a @ C**2)), 1 / 15),
+        "b·(c∘AAc) = 1/30": (B @ (C * (a @ ac)), 1 / 30),
+        "b·(Ac)² = 1/20": (B @ ac**2, 1 / 20),
+        "b·Ac³ = 1/20": (B @ a @ C**3, 1 / 20),
+        "b·A(c∘Ac) = 1/40": (B @ a @ (C * ac), 1 / 40),
+        "b·AAc² = 1/60": (B @ a @ a @ C**2, 1 / 60),
+        "b·AAAc = 1/120": (B @ a @ a @ ac, 1 / 120),
+    }
+    for name, (value, exact) in conditions.items():
+        assert value == pytest.approx(exact, abs=1e-11), name
+
+
+@pytest.mark.parametrize("a", (A_E, A_I))
+def test_the_embedded_weights_are_fourth_order_and_differ_from_b(a):
+    assert B_HAT.sum() == pytest.approx(1.0, abs=1e-12)
+    assert B_HAT @ C == pytest.approx(1 / 2, abs=1e-12)
+    assert B_HAT @ C**2 == pytest.approx(1 / 3, abs=1e-12)
+    assert B_HAT @ a @ C == pytest.approx(1 / 6, abs=1e-12)
+    assert B_HAT @ C**3 == pytest.approx(1 / 4, abs=1e-12)
+    assert B_HAT @ a @ a @ C == pytest.approx(1 / 24, abs=1e-12)
+    assert abs(B_HAT @ C**4 - 1 / 5) > 1e-4  # not 5th order: the difference estimates the error
+
+
+def test_the_implicit_part_is_l_stable():
+    """R(z) = 1 + z bᵀ(I − zA)⁻¹1 of the ESDIRK: |R| ≤ 1 on the imaginary axis and
+    R(z) → 0 like 1/z for z → −∞ (evaluated where the sum's cancellation, |z|·ε, stays
+    far below R)."""
+    one = np.ones(len(B))
+
+    def stability(z):
+        return 1.0 + z * B @ np.linalg.solve(np.eye(len(B)) - z * A_I, one)
+
+    r4, r6 = abs(stability(-1e4)), abs(stability(-1e6))
+    assert r4 < 1e-3 and r6 < 1e-5 and r6 == pytest.approx(r4 / 100, rel=0.01)
+    for w in np.logspace(-2, 4, 200):
+        assert abs(stability(1j * w)) <= 1.0 + 1e-12
+
+
+# ---- the stiff set -----------------------------------------------------------------
+@pytest.mark.parametrize("n_modes, per_link", [(2, [2, 3]), (4, [3, 4, 5])])
+def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(make_case, n_modes, per_link):
+    case = make_case("dynamic", DYNAMIC)
+    engine = ReferenceEngine(case, integrator="imex", n_modes=n_modes)
+    lay = engine.model.layout
+    expected = [lay.mode_offset[i] + j for i in range(6) for j in per_link]
+    np.testing.assert_array_equal(engine._stiff, np.r_[expected, np.add(expected, lay.ns)])
+    # the same shapes stand above STIFF_HZ in the PP and the PF basis of every link
+    arrays = engine.model.arrays
+    for i, n in enumerate(lay.n_modes):
+        for kind in (PP, PF):
+            f = np.sqrt(np.diag(arrays.k_ff[i, kind])[:n] / np.diag(arrays.m_ff[i, kind])[:n]) / (2 * np.pi)
+            assert list(np.flatnonzero(f > imex.STIFF_HZ)) == per_link, (i, kind, f)
+
+
+# ---- the integration ---------------------------------------------------------------
+def test_imex_agrees_with_dopri5_and_its_error_shrinks_with_rtol(make_case):
+    case = make_case("dynamic", DYNAMIC)
+    exact = _advance(ReferenceEngine(case, integrator="dopri5", rtol=1e-11), 0.2, 1e-3, tau=10.0)
+    lay = ReferenceEngine(case).model.layout
+    errors = []
+    for rtol in (1e-5, 1e-7):
+        x = _advance(ReferenceEngine(case, integrator="imex", rtol=rtol), 0.2, 1e-3, tau=10.0)
+        errors.append(max(np.max(np.abs(x[lay.q][:9] - exact[lay.q][:9])),  # rigid [m, rad]
+                          np.max(np.abs(x[lay.q][9:] - exact[lay.q][9:]))))  # amplitudes [m]
+    assert errors[1] < 1e-8, errors
+    assert errors[1] < errors[0] / 10.0, errors
+
+
+def test_one_step_per_control_sample_where_the_explicit_pair_needs_two():
+    """The point of the method: the static shapes' ~0.9 kHz modes bound DP5 near 0.46 ms;
+    with them implicit, a quiet phase (the first 0.3 s of p1's transport, its own
+    controller) takes one step per 1 ms sample (its explicit part sees ~0.2 kHz)."""
+    case = load_case("p1_transport")
+    runs = {}
+    for integrator in ("imex", "dopri5"):
+        engine = ReferenceEngine(case, integrator=integrator)
+        runs[integrator] = (engine, runner.run(engine, case, duration=0.3))
+    (imex_engine, imex_run), (dp5, dp5_run) = runs["imex"], runs["dopri5"]
+    assert imex_engine.steps <= 302 and imex_engine.rejected == 0, (imex_engine.steps, imex_engine.rejected)
+    assert dp5.steps >= 2 * 300, dp5.steps
+    for name in ("ee1_pos_B", "ee2_pos_B", "joint_angles"):
+        assert np.max(np.abs(imex_run.observables[name] - dp5_run.observables[name])) < 1e-9, name
+    # L = ∂f/∂x_S was evaluated once per REFRESH_S of simulated time (and at the start)
+    assert imex_engine._imex_work[imex.W_JACOBIANS] == np.ceil(0.3 / imex.REFRESH_S)
+
+
+def test_a_change_of_the_system_forces_a_new_L(make_case):
+    case = make_case("dynamic", DYNAMIC)
+    engine = ReferenceEngine(case, integrator="imex")
+    _advance(engine, 0.01, 1e-3)
+    assert engine._imex_work[imex.W_JACOBIANS] == 1
+    engine.release(1)
+    engine.advance(0.011, Inputs())
+    assert engine._imex_work[imex.W_JACOBIANS] == 2
