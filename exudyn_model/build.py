@@ -278,6 +278,14 @@ class BuildMixin:
                 it.coords = idx(it.frame_node) + np.arange(3)
             else:
                 it.coords = np.concatenate([idx(n) + np.arange(4) for n in it.nodes])
+        # the sensors' pairs (`ObserveMixin._sensors`): each joint's parent hub and parent frame
+        # (the base's θ for the first joint of an arm), each wrist's terminal distal hub, the
+        # end effectors' x, y (the tip nodes of flexible terminal links; rigid: None)
+        i_thB = self.i_base[2]
+        self._i_hub_parent = np.array([i_thB, *self.i_hub_dist[:2], i_thB, *self.i_hub_dist[3:5]])
+        self._i_frame_parent = np.array([i_thB, *self.i_frame[:2], i_thB, *self.i_frame[3:5]])
+        self._i_wrist_hub = self.i_hub_dist[[2, 5]]
+        self._i_ee = None if self.rigid else np.array([self.links[2].coords[-4:-2], self.links[5].coords[-4:-2]])
         self.q_ref = np.asarray(mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Reference))
         L = self.params.link.length
         self.first = self.mesh.first_matrix()
@@ -296,7 +304,15 @@ class BuildMixin:
         cols = np.argsort(D == 0.0, axis=1, kind="stable")[:, :width]
         self._field_S = (np.ascontiguousarray(cols), np.ascontiguousarray(np.take_along_axis(D, cols, axis=1)))
         self._field_points = np.array([self.i_base[:2], self.i_target[:2]], dtype=np.int64)
-        self._n_carrier = sum(3 if it.rigid else len(it.coords) for it in self.links) + 6
+        # places in the carrier's vector (base, target, then the links: `field_nodes`'s order)
+        # of the base's and target's x, y, of each link's coordinates, of the flexible ones
+        ends = 6 + np.cumsum([3 if it.rigid else len(it.coords) for it in self.links])
+        self._n_carrier = int(ends[-1])
+        self._carrier_points = np.array([[0, 1], [3, 4]], dtype=np.int64)
+        self._carrier_links = [slice(int(e) - (3 if it.rigid else len(it.coords)), int(e))
+                               for it, e in zip(self.links, ends)]
+        self._carrier_flex = np.array([np.arange(self._n_carrier)[self._carrier_links[i]] for i in self._flex],
+                                      dtype=np.int64).reshape(len(self._flex), self.mesh.nq)
         self._uniform: tuple[float, np.ndarray] | None = None  # (base mass, U) of the last build
         # ∫ρ r dξ of every link as one matrix on the stacked link coordinates
         self._link_coords = np.concatenate([it.coords for it in self.links])

@@ -148,9 +148,16 @@ class FieldMixin:
     def _uniform_field_matrix(self, m_base: float) -> np.ndarray:
         """U with U a = generalised forces of a uniform acceleration field a on every mass
         element (physics.md §5: M_X[:, R] a), carrier coordinates × 2, for the base mass
-        `m_base` [kg]; rebuilt only when that mass (propellant) has changed."""
-        if self._uniform is not None and self._uniform[0] == m_base:
-            return self._uniform[1]
+        `m_base` [kg].  Built once; when that mass (propellant, at every sample of a burn)
+        has changed, a copy with the base's two entries replaced (the last U may still be
+        held by a `_ThrustInertia`)."""
+        if self._uniform is not None:
+            if self._uniform[0] == m_base:
+                return self._uniform[1]
+            U = self._uniform[1].copy()
+            U[0, 0] = U[1, 1] = m_base
+            self._uniform = (m_base, U)
+            return U
         p = self.params
         blocks = [np.array([[m, 0.0], [0.0, m], [0.0, 0.0]]) for m in (m_base, p.target.mass)]
         for it in self.links:
@@ -168,27 +175,30 @@ class FieldMixin:
         coordinates: base and target at their COM,
         a flexible link over its Gauss points (r_g = S(ξ_g) q_i, forces Σ_g S(ξ_g)ᵀ ρA w_g
         Δg_g, `tidal_link_forces`, the same S for every link: one mesh), a rigid link over
-        its own Gauss points with the moment about its centre."""
+        its own Gauss points with the moment about its centre.  Each part is written into
+        its place of the carrier's vector (`_carrier_points`, `_carrier_flex`,
+        `_carrier_links`; called every control sample)."""
+        out = np.zeros(self._n_carrier)
         if not self.orbit:
-            return np.zeros(self._n_carrier)
+            return out
         p = self.params
         mu = p.orbit.mu
         r_O = np.asarray(r_O, float)
         cols, vals = self._field_S
-        q_flex = iter(tidal_link_forces(q[self._flex_coords], cols, vals, self._field_weights, r_O, mu))
+        out[self._carrier_flex] = tidal_link_forces(q[self._flex_coords], cols, vals, self._field_weights, r_O, mu)
+        out[self._carrier_points] = tidal_point_forces(q[self._field_points], np.array([m_base, p.target.mass]),
+                                                       r_O, mu)
         xs_rigid, ws_rigid = self._rigid_gauss
-        f_bt = tidal_point_forces(q[self._field_points], np.array([m_base, p.target.mass]), r_O, mu)
-        out = [np.array([f_bt[0, 0], f_bt[0, 1], 0.0]), np.array([f_bt[1, 0], f_bt[1, 1], 0.0])]
         for it in self.links:
             if not it.rigid:
-                out.append(next(q_flex))
                 continue
             qi = q[it.coords]
             pts = qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])])
             f = p.link.rho_a * ws_rigid[:, None] * tidal(mu, r_O, pts)
             lever = pts - qi[:2]
-            out.append(np.array([f[:, 0].sum(), f[:, 1].sum(), np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0])]))
-        return np.concatenate(out)
+            out[self._carrier_links[it.index]] = (f[:, 0].sum(), f[:, 1].sum(),
+                                                  np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0]))
+        return out
 
 
 class _ThrustInertia:
@@ -207,13 +217,15 @@ class _ThrustInertia:
         self.q_held = np.zeros(0)
         self.U = np.zeros((0, 2))
         self.accel = 0.0  # T/m_sys [m/s²]
-        self.impulse = np.zeros(2)  # ∫ (T/m_sys) A(θ_B) e_x dt over the current interval [m/s]
+        # ∫ (T/m_sys) A(θ_B) e_x dt over the current interval [m/s], x and y as floats (summed
+        # at every time step in the solver's thread)
+        self.impulse = [0.0, 0.0]
         self.elapsed = 0.0  # Σ h of the steps that made `impulse` [s], by the solver's clock
         self.t_last = 0.0
 
     def hold(self, tidal: np.ndarray, U: np.ndarray, accel: float, t_start: float) -> None:
         self.q_held, self.U, self.accel = tidal, U, float(accel)
-        self.impulse = np.zeros(2)
+        self.impulse = [0.0, 0.0]
         self.elapsed = 0.0
         self.t_last = t_start
 
@@ -231,7 +243,9 @@ class _ThrustInertia:
         theta = self.theta_ref + q[2] + h * v[2]
         mbs.SetObjectParameter(self.carrier, "forceVector", self.forces(theta))
         th_mid = self.theta_ref + q[2] + 0.5 * h * v[2]
-        self.impulse += h * self.accel * np.array([math.cos(th_mid), math.sin(th_mid)])
+        dv = h * self.accel
+        self.impulse[0] += dv * math.cos(th_mid)
+        self.impulse[1] += dv * math.sin(th_mid)
         self.elapsed += h
         return True
 
@@ -247,5 +261,5 @@ class _ThrustInertia:
         δ = 1.1e-7 s after 535 s, 1.1e-4 of the thrust acceleration, 6.0e-3 m/s along
         the thrust, 0.69 m of altitude at 3500 s); divided by `elapsed`, δ cancels."""
         if self.elapsed > 0.0:
-            return self.impulse / self.elapsed
-        return self.impulse / span if span > 0.0 else np.zeros(2)
+            return np.array(self.impulse) / self.elapsed
+        return np.array(self.impulse) / span if span > 0.0 else np.zeros(2)

@@ -32,19 +32,19 @@ class ObserveMixin:
         return q[self.i_frame], v[self.i_frame]
 
     def _end_effectors(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """Position and velocity of each arm's end effector (row k), inertial axes: the
+        distal pin of its terminal link, for flexible links the tip node's x, y (`_i_ee`)."""
+        if self._i_ee is not None:
+            return q[self._i_ee], v[self._i_ee]
         L = self.params.link.length
         r = np.zeros((2, 2))
         rd = np.zeros((2, 2))
         for k in range(2):
             it = self.links[3 * k + 2]
             qi, vi = q[it.coords], v[it.coords]
-            if it.rigid:
-                d = 0.5 * L * np.array([math.cos(qi[2]), math.sin(qi[2])])
-                r[k] = qi[:2] + d
-                rd[k] = vi[:2] + vi[2] * _perp(d)
-            else:
-                r[k] = qi[-4:-2]
-                rd[k] = vi[-4:-2]
+            d = 0.5 * L * np.array([math.cos(qi[2]), math.sin(qi[2])])
+            r[k] = qi[:2] + d
+            rd[k] = vi[:2] + vi[2] * _perp(d)
         return r, rd
 
     def _com(self, q) -> tuple[np.ndarray, float]:
@@ -53,39 +53,41 @@ class ObserveMixin:
         p = self.params
         mB = self._mass_base()
         s = mB * q[self.i_base[:2]] + p.target.mass * q[self.i_target[:2]] + self._link_first @ q[self._link_coords]
-        m = mB + p.target.mass + 6 * p.link.mass
+        m = self._system_mass()
         return s / m, m
 
+    def _system_mass(self) -> float:
+        """m_B + m_T + 6 m_link [kg] (the base's present mass, `_mass_base`)."""
+        p = self.params
+        return self._mass_base() + p.target.mass + 6 * p.link.mass
+
     def _section_joint_angles(self, q, v) -> tuple[np.ndarray, np.ndarray]:
-        """ψ_J, ψ̇_J: child's proximal hub minus parent's distal hub (the base for joint 1)."""
-        thB, omB = q[self.i_base[2]], v[self.i_base[2]]
-        hp, hpd = q[self.i_hub_prox], v[self.i_hub_prox]
-        hd, hdd = q[self.i_hub_dist], v[self.i_hub_dist]
-        parents = np.array([thB, hd[0], hd[1], thB, hd[3], hd[4]])
-        parents_d = np.array([omB, hdd[0], hdd[1], omB, hdd[3], hdd[4]])
-        return hp - parents, hpd - parents_d
+        """ψ_J, ψ̇_J: child's proximal hub minus parent's distal hub (the base for joint 1,
+        `_i_hub_parent`)."""
+        return q[self.i_hub_prox] - q[self._i_hub_parent], v[self.i_hub_prox] - v[self._i_hub_parent]
 
     def _wrist_angles(self, q) -> np.ndarray:
         """ψ_w: θ_T relative to the distal hub of each terminal link."""
-        return q[self.i_target[2]] - q[self.i_hub_dist[[2, 5]]]
+        return q[self.i_target[2]] - q[self._i_wrist_hub]
 
     def _sensors(self) -> Sensors:
+        """At every control sample: coordinates gathered by the index arrays of `_index` (a
+        fancy index is already a copy)."""
         q, v = self._qv()
-        th, om = self._frame_angles(q, v)
         thB = q[self.i_base[2]]
         psi, psid = self._section_joint_angles(q, v)
         rE, rEd = self._end_effectors(q, v)
         com, m = self._com(q)
         AB_T = rot(thB).T
+        i_frame, i_parent = self.i_frame, self._i_frame_parent
         return Sensors(
-            time=self.t, base_pose_I=q[self.i_base].copy(), base_rate_I=v[self.i_base].copy(),
+            time=self.t, base_pose_I=q[self.i_base], base_rate_I=v[self.i_base],
             joint_angles=psi, joint_rates=psid,
-            joint_frame_angles=th - np.array([thB, th[0], th[1], thB, th[3], th[4]]),
-            joint_frame_rates=om - np.array([v[self.i_base[2]], om[0], om[1], v[self.i_base[2]], om[3], om[4]]),
+            joint_frame_angles=q[i_frame] - q[i_parent], joint_frame_rates=v[i_frame] - v[i_parent],
             wrist_angles=self._wrist_angles(q),
-            motor_angles=q[self.i_rotor].copy(), motor_rates=v[self.i_rotor].copy(),
+            motor_angles=q[self.i_rotor], motor_rates=v[self.i_rotor],
             ee_pos_I=rE, ee_vel_I=rEd,
-            target_pose_I=q[self.i_target].copy(), target_rate_I=v[self.i_target].copy(),
+            target_pose_I=q[self.i_target], target_rate_I=v[self.i_target],
             com_pos_B=AB_T @ (com - q[self.i_base[:2]]), grasp_state=self.grasp_on.copy(),
             system_mass=m, orbit_r_I=self.r_O.copy(), orbit_v_I=self.v_O.copy())
 

@@ -70,12 +70,13 @@ class SteppingMixin:
         if self._restart_pending:
             self._restart_pending = False
             self._restart()
-        held = (tuple(np.asarray(inputs.tau_m, float)), float(inputs.tau_B), float(inputs.thrust))
+        # plain floats: compared with the last held inputs and set into the mbs element by element
+        held = (tuple(np.asarray(inputs.tau_m, float).tolist()), float(inputs.tau_B), float(inputs.thrust))
         thrust = held[2]
         if thrust != 0.0 and not self.field:
             raise SimulationDiverged(self.name, self.t, "?", "thrust without field (build with field=True)", thrust)
         span = t_next - self.t
-        self._set_inputs(held, self._thrust_inertia if self.field else None, span)
+        self._set_inputs(held, self._thrust_inertia if self.field else None, span, previous=self._held)
         if self._held is None and self.field:
             # the solver's initial accelerations were computed at build, without the field
             # forces just set: restart so that they include them (else the first steps take
@@ -89,7 +90,7 @@ class SteppingMixin:
                 # solution takes an O(h) error at the jump).  Small sample-to-sample changes
                 # of a feedback controller are left to the integrator (O(h²) per change).
                 self._restart()
-            self._held = held
+        self._held = held  # also when equal: the mbs now carries these bits (-0.0 == 0.0)
         solver = self.solver
         # the runner may advance by other intervals than the case's control period (a
         # segment's own control_period, an interval clipped at a segment boundary): the step
@@ -111,12 +112,13 @@ class SteppingMixin:
             ok = solver.SolveSteps(mbs, self.settings)
         if not ok:
             ok = self._retry_looser(t_next)
-        self.stats["wall_integrator_s"] += time.perf_counter() - tic
-        self.stats["steps"] += n_steps
-        self.stats["newton_iterations"] = int(solver.it.newtonStepsCount)
-        self.stats["jacobians"] = int(solver.it.newtonJacobiCount)
+        stats, it = self.stats, solver.it
+        stats["wall_integrator_s"] += time.perf_counter() - tic
+        stats["steps"] += n_steps
+        stats["newton_iterations"] = int(it.newtonStepsCount)
+        stats["jacobians"] = int(it.newtonJacobiCount)
         q, v = self._qv()
-        if not ok or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        if not ok or not (np.isfinite(q).all() and np.isfinite(v).all()):
             bad = int(np.argmax(~np.isfinite(q))) if not np.all(np.isfinite(q)) else -1
             raise SimulationDiverged(self.name, self.t, "?",
                                      "Newton failed (step reduction exhausted)" if ok is False else f"ODE2[{bad}]",
@@ -192,7 +194,8 @@ class SteppingMixin:
         self.settings.timeIntegration.newton.absoluteTolerance = atol
         self.solver.newton.absoluteTolerance = atol
 
-    def _set_inputs(self, held: tuple, thrust_inertia: "_ThrustInertia | None", span: float = 0.0) -> None:
+    def _set_inputs(self, held: tuple, thrust_inertia: "_ThrustInertia | None", span: float = 0.0,
+                    previous: tuple | None = None) -> None:
         """Put the held inputs (τ_m, τ_B, thrust) of the coming control period of length
         `span` [s] into the mbs; with the field machinery also the base mass (that of the
         period's middle), the tidal forces and the thrust inertia, through `thrust_inertia`
@@ -204,13 +207,19 @@ class SteppingMixin:
         period, a bias −½ Ġ span (Ġ = G ρ̇ for the gradient G ~ n²) that the relative
         orbital motion grows over long drifts (docs/exudyn.md §5, item 5); at the middle
         the hold's error is O(span²).  span = 0 (an observable at a sample): the field of
-        the current positions."""
+        the current positions.
+
+        `previous`: the held inputs the mbs carries now (`_held`, as `advance` set them: whoever
+        changes a load in between puts it back, `reactions.held_inputs`), None: unknown.  The
+        thrust, constant over whole phases (the torques of a feedback controller change at
+        every sample), is set only when it differs from that, to the sign of zero."""
         mbs = self.mbs
         tau_m, tau_B, thrust = held
         for j in range(6):
             mbs.SetLoadParameter(self.motor_loads[j], "load", float(tau_m[j]))
         mbs.SetLoadParameter(self.base_torque_load, "loadVector", [0.0, 0.0, float(tau_B)])
-        mbs.SetLoadParameter(self.thrust_load, "loadVector", [float(thrust), 0.0, 0.0])
+        if previous is None or not _same_float(thrust, previous[2]):
+            mbs.SetLoadParameter(self.thrust_load, "loadVector", [float(thrust), 0.0, 0.0])
         if thrust_inertia is not None:
             q, v = self._qv()
             # the masses of the period's middle: m(t + span/2) = m(t) − ṁ span/2, ṁ = T/(I_sp g0)
@@ -221,7 +230,7 @@ class SteppingMixin:
             m_base = self._mass_base() - dm_half
             self._set_base_mass(m_base)
             tidal = self._tidal_forces(q + 0.5 * span * v, self.r_O + 0.5 * span * self.v_O, m_base)
-            thrust_inertia.hold(tidal, self._uniform_field_matrix(m_base), thrust / (self._com(q)[1] - dm_half),
+            thrust_inertia.hold(tidal, self._uniform_field_matrix(m_base), thrust / (self._system_mass() - dm_half),
                                 self.t)
             mbs.SetObjectParameter(self.carrier, "forceVector", thrust_inertia.forces(q[self.i_base[2]]))
 
@@ -247,8 +256,14 @@ class SteppingMixin:
         a = self.params.actuators
         f = self.restart_threshold
         old = self._held or ((0.0,) * 6, 0.0, 0.0)
-        return (np.max(np.abs(np.subtract(held[0], old[0]))) > f * self.params.motor.torque_max
+        return (np.abs(np.subtract(held[0], old[0])).max() > f * self.params.motor.torque_max
                 or abs(held[1] - old[1]) > f * a.torque_max or abs(held[2] - old[2]) > f * a.thrust)
+
+
+def _same_float(a: float, b: float) -> bool:
+    """a and b are the same number, to the sign of zero (0.0 == -0.0 would hide a change of
+    a load's bits)."""
+    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
 
 
 class _Worker:

@@ -339,3 +339,19 @@ def test_held_inputs_apply_the_coming_period():
     assert scale > 0.5  # 0.84 N five periods into the burn
     assert np.abs(right_on - left).max() < 2e-6 * scale, np.abs(right_on - left).max() / scale
     assert np.abs(right_off - left).max() > 0.1 * scale, np.abs(right_off - left).max() / scale
+
+
+def test_the_mbs_carries_the_held_thrust_when_advance_skips_an_unchanged_one():
+    """advance() sets the thrust load only when the thrust differs from the held one, to
+    the sign of zero (`_set_inputs`' previous): across an evaluation with other inputs
+    (`held_inputs` sets and restores the loads) and across ±0, the mbs carries the held
+    thrust bit for bit at every period."""
+    case = load_case("thrust_burn")
+    eng = ExudynEngine(case, rigid=True, substeps=2)
+    thrust = case.params.actuators.thrust
+    mbs = eng.mbs
+    for k, value in enumerate([thrust, thrust, thrust, 0.0, -0.0, -0.0, 0.0, thrust], start=1):
+        reactions.grasp_forces(eng, Inputs(thrust=0.5 * thrust))
+        eng.advance(k * 1e-3, Inputs(thrust=value))
+        load = mbs.GetLoadParameter(eng.thrust_load, "loadVector")
+        assert np.asarray(load).tobytes() == np.array([value, 0.0, 0.0]).tobytes(), (k, value, load)
