@@ -14,7 +14,12 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   mass of the parameter set scaled by (1 + `PERTURBATION`), a change 10⁴ times double
   round-off that stands in for another machine or library build (different operation
   order, FMA contraction); the tolerance is `TOL_FACTOR` times the largest change this
-  causes in the observable, and at least `REL_FLOOR` times its largest magnitude.
+  causes in the observable, and at least `REL_FLOOR` times its largest magnitude.  An
+  engine with an adaptive step (the reference) is run a third time with its relative
+  tolerance scaled by (1 + `STEP_PERTURBATION`): another machine's round-off can flip
+  one accept/reject decision of its step control, after which the solution differs by
+  integration error, not by round-off; `STEP_FACTOR` times the change of that run is the
+  second lower bound of the tolerance.
 * A run moved when any observable differs from the golden by more than its gate tolerance
   at any stored sample, when the events or phases differ, or when its time grid differs.
   A changed case file or parameter set is reported as such (the run then has no golden to
@@ -50,6 +55,13 @@ MAX_SAMPLES = 100
 PERTURBATION = 1e-12
 #: gate tolerance = TOL_FACTOR × the change the perturbation causes ...
 TOL_FACTOR = 10.0
+#: ... and, for an engine with an adaptive step (`ADAPTIVE`), at least STEP_FACTOR × the change
+#: a relative change STEP_PERTURBATION of its rtol causes (another step sequence: a flipped
+#: accept/reject decision moved capture's reference reaction forces by 1.4e-6 N between two
+#: CPUs, 19 × a tolerance measured from the mass perturbation alone; docs/gate.md) ...
+STEP_PERTURBATION = 1e-3
+STEP_FACTOR = 3.0
+ADAPTIVE = ("reference",)
 #: ... and at least REL_FLOOR × the observable's largest magnitude (+ ABS_FLOOR)
 REL_FLOOR = 1e-10
 ABS_FLOOR = 1e-14
@@ -58,6 +70,7 @@ ABS_FLOOR = 1e-14
 EVENT_TIME_TOL = 1e-9
 _TOL = "gate_tol."
 _DELTA = "gate_delta."
+_DELTA_STEP = "gate_delta_step."
 
 
 @dataclass
@@ -172,26 +185,34 @@ def differences(run: EngineRun, golden_run: EngineRun, index: np.ndarray) -> dic
     return out
 
 
-def measured_tolerances(nominal: EngineRun, perturbed: EngineRun) -> tuple[dict[str, float], dict[str, float]]:
-    """(gate tolerance, measured change) per observable from a nominal and a perturbed run."""
-    if len(nominal.observables["time"]) != len(perturbed.observables["time"]):
-        raise RuntimeError("the perturbed run has another time grid than the nominal one: "
-                           "the case is not reproducible at round-off level (an event moved by a sample)")
-    idx = np.arange(len(nominal.observables["time"]))
+def measured_tolerances(nominal: EngineRun, perturbed: EngineRun, stepped: EngineRun | None = None
+                        ) -> tuple[dict[str, float], dict[str, float], dict[str, float]]:
+    """(gate tolerance, change of the mass perturbation, change of the step perturbation) per
+    observable from the nominal run, the mass-perturbed one and, for an adaptive-step
+    engine, the run with the perturbed rtol (`stepped`; None: no such run, its changes 0)."""
+    n = len(nominal.observables["time"])
+    for other in (perturbed, stepped):
+        if other is not None and len(other.observables["time"]) != n:
+            raise RuntimeError("a perturbed run has another time grid than the nominal one: the case is not "
+                               "reproducible at round-off level (an event moved by a sample)")
+    idx = np.arange(n)
     diffs = differences(perturbed, nominal, idx)
+    diffs_step = differences(stepped, nominal, idx) if stepped is not None else None
     size = scales(nominal)
-    tol, delta = {}, {}
+    tol, delta, delta_step = {}, {}, {}
     for name in NAMES:
         d = diffs[name][0]
         delta[name] = float(np.max(d)) if d.size else 0.0
-        if not np.isfinite(delta[name]):
-            raise RuntimeError(f"{name}: the perturbed run is NaN where the nominal one is not")
-        tol[name] = max(TOL_FACTOR * delta[name], REL_FLOOR * size[name] + ABS_FLOOR)
-    return tol, delta
+        ds = diffs_step[name][0] if diffs_step is not None else np.zeros(0)
+        delta_step[name] = float(np.max(ds)) if ds.size else 0.0
+        if not (np.isfinite(delta[name]) and np.isfinite(delta_step[name])):
+            raise RuntimeError(f"{name}: a perturbed run is NaN where the nominal one is not")
+        tol[name] = max(TOL_FACTOR * delta[name], STEP_FACTOR * delta_step[name], REL_FLOOR * size[name] + ABS_FLOOR)
+    return tol, delta, delta_step
 
 
 def write_golden(path: Path, case, run: EngineRun, tolerances: dict[str, float], deltas: dict[str, float],
-                 reason: str) -> Path:
+                 reason: str, deltas_step: dict[str, float] | None = None) -> Path:
     """Write the decimated `run` of the short variant of `case` with its provenance."""
     n_full = len(run.observables["time"])
     idx = kept_samples(n_full)
@@ -201,10 +222,12 @@ def write_golden(path: Path, case, run: EngineRun, tolerances: dict[str, float],
         "reason": reason, "blessed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "platform": platform.platform(), "machine": platform.machine(),
         "perturbation": PERTURBATION, "tol_factor": TOL_FACTOR, "rel_floor": REL_FLOOR,
+        "step_perturbation": STEP_PERTURBATION if deltas_step is not None else 0.0, "step_factor": STEP_FACTOR,
         "case_inputs_hash": case_inputs_hash(case),
     }
     extra.update({_TOL + k: float(v) for k, v in tolerances.items()})
     extra.update({_DELTA + k: float(v) for k, v in deltas.items()})
+    extra.update({_DELTA_STEP + k: float(v) for k, v in (deltas_step or {}).items()})
     return write_run(path, {run.engine: small}, case_name=case.name, case_hash=case.file_hash,
                      param_hash=case.params.digest(), extra_attrs=extra, compress=True)
 
@@ -295,6 +318,13 @@ def perturbed_case(case):
     return dataclasses.replace(case, params=Params.from_overrides(values, "<perturbation>"))
 
 
+def step_perturbed_case(case):
+    """`case` with its relative tolerance scaled by (1 + STEP_PERTURBATION): another step
+    sequence of an adaptive integrator, at the same accuracy."""
+    return dataclasses.replace(case, solver=dataclasses.replace(case.solver,
+                                                                rtol=case.solver.rtol * (1.0 + STEP_PERTURBATION)))
+
+
 def summarize_change(old: Golden | None, new_run: EngineRun, case) -> list[str]:
     """Lines for the changelog: what moved between the old golden and the new run."""
     if old is None:
@@ -347,14 +377,17 @@ def gate(cases: list, engines: list[str], root: Path = GOLDEN_DIR, progress=None
 
 
 def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR, progress=None) -> list[tuple[str, str, list[str]]]:
-    """Re-run and rewrite the goldens of `cases` (nominal and perturbed runs, the gate
-    tolerances measured from the pair) and prepend what moved to the changelog."""
+    """Re-run and rewrite the goldens of `cases` (nominal and perturbed runs, and the
+    step-perturbed one of an adaptive engine; the gate tolerances measured from them) and
+    prepend what moved to the changelog."""
     if not reason or not reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason (what changed and why the new results are right)")
     variants = [c.variant(True) for c in cases]
-    jobs = [Job(f"{v.name} / {e}" + (" (perturbed)" if p else ""), run_engine,
-                (e, perturbed_case(v) if p else v), expected_wall(v, e), (v.name, e, p))
-            for v in variants for e in engines for p in (False, True)]
+    kinds = {"nominal": lambda v: v, "perturbed": perturbed_case, "step-perturbed": step_perturbed_case}
+    jobs = [Job(f"{v.name} / {e}" + (f" ({k})" if k != "nominal" else ""), run_engine,
+                (e, make(v)), expected_wall(v, e), (v.name, e, k))
+            for v in variants for e in engines for k, make in kinds.items()
+            if k != "step-perturbed" or e in ADAPTIVE]
     done = run_jobs(jobs, progress)  # the one pool; a failed job raises once all have ended
     for job in jobs:
         if done[job].error is not None:
@@ -368,18 +401,20 @@ def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR,
                 old = read_golden(path, e) if path.exists() else None
             except InputError:
                 old = None
-            nominal = runs[(v.name, e, False)]
-            tol, delta = measured_tolerances(nominal, runs[(v.name, e, True)])
+            nominal = runs[(v.name, e, "nominal")]
+            tol, delta, delta_step = measured_tolerances(nominal, runs[(v.name, e, "perturbed")],
+                                                         runs.get((v.name, e, "step-perturbed")))
             what = summarize_change(old, nominal, v) if old is not None else ["new golden"]
-            write_golden(path, v, nominal, tol, delta, reason.strip())
+            write_golden(path, v, nominal, tol, delta, reason.strip(), delta_step if e in ADAPTIVE else None)
             entries.append((v.name, e, what))
     append_changelog(root, reason.strip(), entries)
     return entries
 
 
 def tolerance_table(cases: list, engines: list[str], root: Path = GOLDEN_DIR) -> list[dict[str, Any]]:
-    """Per (case, engine, observable): the gate tolerance, the change the perturbation
-    caused and the observable's largest magnitude, as stored in the goldens."""
+    """Per (case, engine, observable): the gate tolerance, the changes the mass and the step
+    perturbation caused (the latter NaN for a golden of a fixed-step engine) and the
+    observable's largest magnitude, as stored in the goldens."""
     rows = []
     for c in cases:
         for e in engines:
@@ -388,5 +423,6 @@ def tolerance_table(cases: list, engines: list[str], root: Path = GOLDEN_DIR) ->
             for name in NAMES:
                 rows.append({"case": c.name, "engine": e, "observable": name, "tolerance": g.tolerances[name],
                              "perturbation_change": float(g.attrs.get(_DELTA + name, float("nan"))),
+                             "step_change": float(g.attrs.get(_DELTA_STEP + name, float("nan"))),
                              "largest_value": size[name]})
     return rows

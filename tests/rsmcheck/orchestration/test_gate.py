@@ -17,12 +17,15 @@ from rsmcheck.cases import load_case
 from rsmcheck.cli import main
 from rsmcheck.orchestration.gate import (
     PERTURBATION,
+    STEP_FACTOR,
+    STEP_PERTURBATION,
     compare_with_golden,
     golden_path,
     kept_samples,
     measured_tolerances,
     perturbed_case,
     read_golden,
+    step_perturbed_case,
     write_golden,
 )
 from rsmcheck.runner import run
@@ -75,17 +78,38 @@ def test_perturbation_scales_every_mass_and_nothing_else(tiny):
 
 def test_gate_tolerances_are_measured_from_the_perturbed_run(tiny_runs):
     nominal, perturbed = tiny_runs
-    tol, delta = measured_tolerances(nominal, perturbed)
+    tol, delta, delta_step = measured_tolerances(nominal, perturbed)
+    assert all(v == 0.0 for v in delta_step.values())  # no step-perturbed run: no bound from it
     # the perturbation moves the dynamics, but only at its own relative size
     assert 0 < delta["base_pose_I"] < 1e-9
     assert tol["base_pose_I"] >= 10 * delta["base_pose_I"]
     assert delta["time"] == 0 and tol["time"] > 0  # the floor: never a zero tolerance
 
 
+def test_the_step_perturbation_changes_only_rtol_and_bounds_the_tolerance(tiny, tiny_runs):
+    """The reference's third bless run: rtol × (1 + STEP_PERTURBATION), nothing else; it takes
+    another step sequence (a different count of steps or rejections), and STEP_FACTOR × its
+    change is a lower bound of every gate tolerance."""
+    case, _ = tiny
+    stepped_case = step_perturbed_case(case)
+    assert stepped_case.solver.rtol == pytest.approx(case.solver.rtol * (1 + STEP_PERTURBATION), rel=1e-15)
+    assert stepped_case.params == case.params and stepped_case.initial == case.initial
+    nominal, perturbed = tiny_runs
+    engine = ReferenceEngine(stepped_case)
+    stepped = run(engine, stepped_case, stepped_case.duration)
+    reference = ReferenceEngine(case)
+    run(reference, case, case.duration)
+    assert (engine.steps, engine.rejected) != (reference.steps, reference.rejected)
+    tol, delta, delta_step = measured_tolerances(nominal, perturbed, stepped)
+    assert delta_step["ee2_pos_B"] > 0.0
+    for name, d in delta_step.items():
+        assert tol[name] >= STEP_FACTOR * d, name
+
+
 def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
     case, _ = tiny
     nominal, perturbed = tiny_runs
-    tol, delta = measured_tolerances(nominal, perturbed)
+    tol, delta, _ = measured_tolerances(nominal, perturbed)
     path = write_golden(golden_path(case.name, "reference", tmp_path), case, nominal, tol, delta, "test")
     g = read_golden(path, "reference")
     for key in ("case_hash", "param_hash", "git_commit", "reason", "blessed_utc", "platform", "version.numpy"):
@@ -144,7 +168,7 @@ def test_bad_goldens_are_input_errors(tiny, tiny_runs, tmp_path):
     with pytest.raises(InputError, match="not an HDF5 file"):
         read_golden(tmp_path / "junk.h5", "reference")
     nominal, perturbed = tiny_runs
-    tol, delta = measured_tolerances(nominal, perturbed)
+    tol, delta, _ = measured_tolerances(nominal, perturbed)
     path = write_golden(tmp_path / "g.h5", case, nominal, tol, delta, "test")
     with h5py.File(path, "a") as f:
         f.attrs["golden_schema"] = 99
