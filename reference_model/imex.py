@@ -182,7 +182,7 @@ def integrate_ark(x0, t0, t1, h, rtol, atol, hmax, S, L, Winv, work, refresh, u,
     h = min(h, hmax)
     err_old = 1e-4
     rejected = False
-    first = True
+    f0_is_of_x = True  # f0 = f(x): false after an accepted step moved x
     while t < t1:
         last = False
         h_nominal = h
@@ -198,9 +198,9 @@ def integrate_ark(x0, t0, t1, h, rtol, atol, hmax, S, L, Winv, work, refresh, u,
             Winv[:, :] = np.linalg.inv(W)
             work[W_H_OF_W] = h
         # stage 1 is explicit: X_1 = x_n
-        if not first:
+        if not f0_is_of_x:
             f0 = rhs(x, u, m, sw)
-        first = False
+            f0_is_of_x = True
         for c in range(nx):
             FI[0, c] = 0.0
         for k in range(nS):
@@ -241,6 +241,7 @@ def integrate_ark(x0, t0, t1, h, rtol, atol, hmax, S, L, Winv, work, refresh, u,
         if err <= 1.0:
             t = t1 if last else t + h
             x = xn
+            f0_is_of_x = False
             nacc += 1
             h, err_old = accepted_step(h, h_nominal, err, err_old, rejected, last, hmax)
             rejected = False
