@@ -26,18 +26,6 @@ from rsmcheck.engine import Inputs
 
 A_E, A_I, B, B_HAT, C = imex._AE, imex._AI, imex._B, imex._BHAT, imex._C
 
-DYNAMIC = """
-description = "open chain with rates: links and rotors ring"
-duration = 1.0
-[initial]
-base_rate = [0.0, 0.0, 0.05]
-joint_rates = [0.05, -0.05, 0.05, -0.05, 0.05, -0.05]
-grasp = [1, 0]
-[solver]
-control_period = 1e-3
-output_period = 1e-2
-rtol = 1e-7
-"""
 
 
 def _advance(engine: ReferenceEngine, t_end: float, dt: float, tau: float = 0.0) -> np.ndarray:
@@ -124,8 +112,8 @@ def test_the_implicit_part_is_l_stable():
 
 # ---- the stiff set -----------------------------------------------------------------
 @pytest.mark.parametrize("n_modes, per_link", [(2, [2, 3]), (4, [3, 4, 5])])
-def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(make_case, n_modes, per_link):
-    case = make_case("dynamic", DYNAMIC)
+def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(ringing_chain, n_modes, per_link):
+    case = ringing_chain
     engine = ReferenceEngine(case, integrator="imex", n_modes=n_modes)
     lay = engine.model.layout
     expected = [lay.mode_offset[i] + j for i in range(6) for j in per_link]
@@ -139,8 +127,8 @@ def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(
 
 
 # ---- the integration ---------------------------------------------------------------
-def test_imex_agrees_with_dopri5_and_its_error_shrinks_with_rtol(make_case):
-    case = make_case("dynamic", DYNAMIC)
+def test_imex_agrees_with_dopri5_and_its_error_shrinks_with_rtol(ringing_chain):
+    case = ringing_chain
     exact = _advance(ReferenceEngine(case, integrator="dopri5", rtol=1e-11), 0.2, 1e-3, tau=10.0)
     lay = ReferenceEngine(case).model.layout
     errors = []
@@ -170,8 +158,8 @@ def test_one_step_per_control_sample_where_the_explicit_pair_needs_two():
     assert imex_engine._imex_work[imex.W_JACOBIANS] == np.ceil(0.3 / imex.REFRESH_S)
 
 
-def test_a_change_of_the_system_forces_a_new_L(make_case):
-    case = make_case("dynamic", DYNAMIC)
+def test_a_change_of_the_system_forces_a_new_L(ringing_chain):
+    case = ringing_chain
     engine = ReferenceEngine(case, integrator="imex")
     _advance(engine, 0.01, 1e-3)
     assert engine._imex_work[imex.W_JACOBIANS] == 1

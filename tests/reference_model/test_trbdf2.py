@@ -27,18 +27,6 @@ output_period = 0.1
 rtol = 1e-6
 """
 
-DYNAMIC = """
-description = "open chain with rates: links and rotors ring"
-duration = 1.0
-[initial]
-base_rate = [0.0, 0.0, 0.05]
-joint_rates = [0.05, -0.05, 0.05, -0.05, 0.05, -0.05]
-grasp = [1, 0]
-[solver]
-control_period = 1e-3
-output_period = 1e-2
-rtol = 1e-9
-"""
 
 
 def _advance(engine: ReferenceEngine, t_end: float, dt: float) -> np.ndarray:
@@ -48,8 +36,8 @@ def _advance(engine: ReferenceEngine, t_end: float, dt: float) -> np.ndarray:
     return engine.x
 
 
-def test_trbdf2_agrees_with_dopri5_and_converges_at_second_order(make_case):
-    case = make_case("dynamic", DYNAMIC)
+def test_trbdf2_agrees_with_dopri5_and_converges_at_second_order(ringing_chain):
+    case = ringing_chain
     exact = _advance(ReferenceEngine(case, integrator="dopri5", rtol=1e-11), 0.2, 1e-3)
     lay = ReferenceEngine(case).model.layout
     errors = []
