@@ -23,23 +23,24 @@ from reference_model import observe, switching
 from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, initial_state
 from reference_model.stepping import SteppingMixin
 from reference_model.trbdf2 import N_WORK
-from rsmcheck.cases import Case, first_given
+from rsmcheck.cases import INTEGRATORS, Case, first_given
 from rsmcheck.engine import Inputs, Sensors
 from rsmcheck.initial import StartState, build_initial, orbit_start
 from rsmcheck.params import Params
 from rsmcheck.store import package_versions
 
 H_MAX = 0.05  # s, explicit DP5(4): stability bounds h near 2.5 ms anyway
-H_MAX_IMPLICIT = 1.0  # s, TR-BDF2 in quiet phases
-INTEGRATORS = ("dopri5", "trbdf2", "imex")
+H_MAX_IMPLICIT = 1.0  # s, TR-BDF2 and IMEX: accuracy bounds the step
 
 
 class ReferenceEngine(SteppingMixin):
     """Kane–Newton reference model stepping through a case.
 
-    Options: n_modes (eigenmodes per link, default the case's), rtol, integrator ("dopri5"
-    or "trbdf2"), h_max (largest step), static_modes (docs/physics.md §2.4); each defaults
-    to the case's [solver] / [reference] table, else the engine's default.  `start`: the
+    Options: n_modes (eigenmodes per link, default the case's), rtol, integrator ("dopri5",
+    "trbdf2" or "imex"), quiet_integrator (that of the control intervals longer than the
+    case's control period, docs/physics.md §7), h_max (largest step), static_modes
+    (docs/physics.md §2.4); each defaults to the case's [solver] / [reference] table, else
+    the engine's default.  `start`: the
     end state of a previous run this run continues from (rsmcheck.initial.StartState), None
     to start from the case's [initial].
     """
@@ -48,7 +49,7 @@ class ReferenceEngine(SteppingMixin):
 
     def __init__(self, case: Case, params: Params | None = None, n_modes=None, rtol: float | None = None,
                  integrator: str | None = None, h_max: float | None = None, static_modes: bool | None = None,
-                 start: StartState | None = None):
+                 quiet_integrator: str | None = None, start: StartState | None = None):
         self.params = params or case.params
         self.case = case
         self.start = start
@@ -56,16 +57,23 @@ class ReferenceEngine(SteppingMixin):
         self.model = ReferenceModel(self.params, n_modes if n_modes is not None else case.n_modes,
                                     orbit=case.orbit, static_modes=static_modes)
         self.rtol = rtol if rtol is not None else case.solver.rtol
-        self.integrator = integrator or getattr(case.solver, "integrator", "dopri5")
-        if self.integrator not in INTEGRATORS:
-            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
+        self.integrator = integrator or case.solver.integrator
+        self.quiet_integrator = quiet_integrator or case.reference.quiet_integrator or self.integrator
+        for name in (self.integrator, self.quiet_integrator):
+            if name not in INTEGRATORS:
+                raise ValueError(f"integrator must be one of {INTEGRATORS}, got {name!r}")
         # largest step: explicit option > the case's [reference] table > the integrator's default
-        self.h_max = float(first_given(h_max, case.reference.h_max,
-                                       H_MAX if self.integrator == "dopri5" else H_MAX_IMPLICIT))
+        self._h_max = {name: float(first_given(h_max, case.reference.h_max,
+                                               H_MAX if name == "dopri5" else H_MAX_IMPLICIT))
+                       for name in (self.integrator, self.quiet_integrator)}
+        self.h_max = self._h_max[self.integrator]
         init = build_initial(case, self.params, start)
         self.x, self.cfg = initial_state(self.model, init)
         self.t = 0.0
-        self.h = 1e-4
+        # the step each integrator carries to its next interval (its own: the quiet
+        # integrator's longer steps would only be rejected by the explicit one)
+        self._h = {name: 1e-4 for name in (self.integrator, self.quiet_integrator)}
+        self.quiet_steps = 0
         self.steps = 0
         self.rejected = 0
         self.integrator_wall = 0.0  # s inside the compiled integrator (rsmcheck bench)
@@ -144,8 +152,10 @@ class ReferenceEngine(SteppingMixin):
     def solver_settings(self) -> dict:
         names = {"dopri5": "Dormand-Prince 5(4), embedded error control",
                  "trbdf2": "TR-BDF2 (L-stable ESDIRK), embedded 3rd-order error estimate",
-                 "imex": "ARK4(3)6L[2]SA IMEX (stiff shapes implicit), embedded error control"}
-        return {"integrator": names[self.integrator], "rtol": self.rtol,
+                 "imex": "ARK5(4)8L[2]SA IMEX (stiff shapes implicit), embedded error control"}
+        quiet = {} if self.quiet_integrator == self.integrator else {
+            "quiet_integrator": names[self.quiet_integrator], "quiet_steps": self.quiet_steps}
+        return {"integrator": names[self.integrator], **quiet, "rtol": self.rtol,
                 "h_max": self.h_max,
                 "jacobians": self._jacobians(),
                 "control_period": self.case.solver.control_period,

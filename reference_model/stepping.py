@@ -4,7 +4,13 @@
 * `dopri5.integrate_dopri5`: embedded Dormand–Prince 5(4), the default (docs/physics.md §7);
 * `trbdf2.integrate_trbdf2`: TR-BDF2 for quiet, stiff phases; its iteration matrix (J,
   (I − d h J)⁻¹ and the `work` slots) is kept between control periods and dropped when the
-  system changes (capture, release: `_new_system`).
+  system changes (capture, release: `_new_system`);
+* `imex.integrate_ark`: the additive pair with the stiff shapes implicit, whose frozen
+  Jacobian columns L are kept and dropped in the same way.
+
+The control intervals longer than the case's control period (a quiet segment's own
+`control_period`) go to the case's `quiet_integrator` ([reference] table), the others to
+its `integrator`; each carries its own step size from one interval to its next.
 
 Both control the error per component against atol_i + rtol·|x_i|, with atol_i = rtol ×
 the scale of its kind of coordinate (`ATOL_SCALE`).  The engine's mirror in the Exudyn
@@ -41,9 +47,9 @@ ATOL_SCALE = {
 
 
 class SteppingMixin:
-    """`ReferenceEngine`'s stepping: reads model, cfg, rtol, integrator, h_max; advances
-    x, t, h, the step counters and the integrator's wall time; owns the TR-BDF2 iteration
-    matrix (_jac, _minv, _work)."""
+    """`ReferenceEngine`'s stepping: reads model, cfg, rtol, integrator, quiet_integrator,
+    _h_max; advances x, t, the carried steps _h, the step counters and the integrator's
+    wall time; owns the TR-BDF2 iteration matrix (_jac, _minv, _work) and the IMEX's L."""
 
     def _atol(self) -> np.ndarray:
         lay = self.model.layout
@@ -68,26 +74,34 @@ class SteppingMixin:
     def _advance(self, t_next: float, inputs: Inputs) -> None:
         args = self.model.core_args(self.cfg)
         u = self.u_vector(inputs)
+        # an interval longer than the case's control period belongs to a quiet segment (its
+        # own, longer control_period): the quiet integrator's (docs/physics.md §7)
+        quiet = t_next - self.t > self.case.solver.control_period * (1.0 + 1e-6)
+        name = self.quiet_integrator if quiet else self.integrator
+        h0, h_max = self._h[name], self._h_max[name]
         tic = time.perf_counter()
-        if self.integrator == "dopri5":
+        if name == "dopri5":
             x, h, nacc, nrej, status = integrate_dopri5(
-                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, u, *args)
-        elif self.integrator == "imex":
+                self.x, self.t, t_next, h0, self.rtol, self.atol, h_max, u, *args)
+        elif name == "imex":
             x, h, nacc, nrej, status = imex.integrate_ark(
-                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, self._stiff, self._L,
+                self.x, self.t, t_next, h0, self.rtol, self.atol, h_max, self._stiff, self._L,
                 self._Winv, self._imex_work, imex.REFRESH_S, u, *args)
         else:
             x, h, nacc, nrej, status = integrate_trbdf2(
-                self.x, self.t, t_next, self.h, self.rtol, self.atol, self.h_max, self._jac,
+                self.x, self.t, t_next, h0, self.rtol, self.atol, h_max, self._jac,
                 self._minv, self._work, u, *args)
         self.integrator_wall += time.perf_counter() - tic
         self.steps += nacc
         self.rejected += nrej
+        if quiet and name != self.integrator:
+            self.quiet_steps += nacc
         if status != 0 or not np.all(np.isfinite(x)):
             bad = int(np.argmax(~np.isfinite(x))) if not np.all(np.isfinite(x)) else int(np.argmax(np.abs(x)))
             raise SimulationDiverged(self.name, self.t, "?", f"state[{bad}] "
                                      + ("non-finite" if status == 1 else "step size underflow"), float(x[bad]))
-        self.x, self.h, self.t = x, h, t_next
+        self.x, self.t = x, t_next
+        self._h[name] = h
 
     def _imex_setup(self) -> None:
         """The IMEX integrator's stiff components and the storage of L, W⁻¹ (imex.py)."""

@@ -148,6 +148,10 @@ class CaptureSpec:
     point_T: tuple[float, float] | None = None  # None: params.geometry.grasp_T(arm)
 
 
+#: the reference engine's integrators (reference_model/stepping.py)
+INTEGRATORS = ("dopri5", "trbdf2", "imex")
+
+
 @dataclass(frozen=True)
 class SolverSpec:
     control_period: float = 1e-3
@@ -176,10 +180,14 @@ class _EngineSettings:
 @dataclass(frozen=True)
 class ReferenceSettings(_EngineSettings):
     """[reference]: the reference engine's settings of a case; None = the engine's default
-    (reference_model/engine.py).  `why` is the study behind them (required with h_max)."""
+    (reference_model/engine.py).  `why` is the study behind them (required with h_max or
+    quiet_integrator)."""
 
     static_modes: bool | None = None  # static correction shapes (docs/physics.md §2.4)
     h_max: float | None = None  # largest integration step [s]
+    #: the integrator of the control intervals longer than [solver] control_period (the
+    #: quiet segments' own control_period, docs/physics.md §7); None: [solver] integrator
+    quiet_integrator: str | None = None
     why: str = ""
 
 
@@ -588,7 +596,7 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         "control_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True, hi=0.1),
         "output_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
         "rtol": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
-        "integrator": lambda k, v: _choice(w, k, v, ("dopri5", "trbdf2", "imex")),
+        "integrator": lambda k, v: _choice(w, k, v, INTEGRATORS),
     }))
     ratio = solver.output_period / solver.control_period
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -887,13 +895,14 @@ def _exudyn(w: str, key: str, v: Any) -> ExudynSettings:
 
 
 def _reference(w: str, key: str, v: Any) -> tuple[tuple[int, ...], ReferenceSettings]:
-    """[reference]: modes per link, and the engine's settings (the largest DP5 step with the
-    reason, a study)."""
+    """[reference]: modes per link, and the engine's settings (the largest DP5 step, the
+    quiet segments' integrator, each with the reason, a study)."""
     t = _engine_settings(w, key, v, {
         "n_modes": lambda k, x: _modes(w, k, x),
         "static_modes": lambda k, x: _flag(w, k, x),
         "h_max": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
-    }, needs_why=("h_max",))
+        "quiet_integrator": lambda k, x: _choice(w, k, x, INTEGRATORS),
+    }, needs_why=("h_max", "quiet_integrator"))
     n_modes = t.pop("n_modes", (2,) * 6)
     return n_modes, ReferenceSettings(**t)
 

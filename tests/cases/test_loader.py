@@ -112,6 +112,12 @@ def test_reference_table_sets_the_largest_step(tmp_path):
     assert case.variant(True).reference.given() == {"h_max": 2e-4}
 
 
+def test_reference_table_names_the_quiet_segments_integrator(tmp_path):
+    text = edit(VALID, "n_modes = 2", 'n_modes = 2\nquiet_integrator = "imex"\nwhy = "the coast study"')
+    case = load_case(write(tmp_path, text, "good"))
+    assert case.reference.quiet_integrator == "imex" and case.solver.integrator == "dopri5"
+
+
 GROWTH = '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nmetric = "growth"\n'
 
 # (id, edit of VALID, field the error must name)
@@ -170,6 +176,11 @@ BAD = [
     ("reference_h_max_text", lambda t: edit(t, "n_modes = 2", 'n_modes = 2\nh_max = "small"\nwhy = "a study"'),
      "reference.h_max"),
     ("reference_h_max_without_why", lambda t: edit(t, "n_modes = 2", "n_modes = 2\nh_max = 2e-4"), "reference.why"),
+    ("reference_quiet_integrator_unknown",
+     lambda t: edit(t, "n_modes = 2", 'n_modes = 2\nquiet_integrator = "rk4"\nwhy = "a study"'),
+     "reference.quiet_integrator"),
+    ("reference_quiet_integrator_without_why",
+     lambda t: edit(t, "n_modes = 2", 'n_modes = 2\nquiet_integrator = "imex"'), "reference.why"),
     ("reference_unknown_key", lambda t: edit(t, "n_modes = 2", "n_modes = 2\nrtol = 1e-9"), "reference.rtol"),
     ("exudyn_constraints_unknown", lambda t: t + '[exudyn]\nconstraints = "index1"\nwhy = "a study"\n',
      "exudyn.constraints"),

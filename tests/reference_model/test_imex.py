@@ -13,6 +13,7 @@ counts are deterministic and can be asserted; wall time is not (benchmarks/).
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -166,3 +167,38 @@ def test_a_change_of_the_system_forces_a_new_L(ringing_chain):
     engine.release(1)
     engine.advance(0.011, Inputs())
     assert engine._imex_work[imex.W_JACOBIANS] == 2
+
+
+def test_the_quiet_segments_go_to_the_quiet_integrator():
+    """`quiet_integrator` (the [reference] table of p4 and p5): the intervals longer than the
+    case's control period (a coast's 5 ms) go to the IMEX pair, the others to DP5, bit for
+    bit as without it.  A 0.5 s burn of p4, then a 7 s coast: once the shutdown has rung out
+    (~6 s: 15, 8.2, 6.8, 5.4, 4.5, 3.7 steps per sample in its first six seconds) the IMEX
+    takes three steps per 5 ms sample where DP5 takes nine (the coast study of
+    cases/p4_hohmann.toml), and the two runs agree far below the engines' differences."""
+    base = load_case("p4_hohmann").variant(True)
+    burn, coast = base.segments[0], base.segments[1]
+    case = replace(base, segments=(replace(burn, duration=0.5), replace(coast, duration=7.0)), duration=7.5)
+    assert case.reference.quiet_integrator == "imex"
+    runs, late_steps, x_at_shutdown = {}, {}, {}
+    for quiet in ("imex", "dopri5"):
+        engine = ReferenceEngine(case, quiet_integrator=quiet)
+        advance, steps = engine.advance, []
+
+        def logged(t_next, inputs, engine=engine, advance=advance, steps=steps):
+            if abs(engine.t - 0.5) < 1e-9:
+                x_at_shutdown[quiet] = engine.x.copy()
+            n = engine.steps
+            advance(t_next, inputs)
+            steps.append((t_next, engine.steps - n))
+
+        engine.advance = logged
+        runs[quiet] = (engine, runner.run(engine, case))
+        late_steps[quiet] = np.mean([n for t, n in steps if t > 6.5 + 1e-9])
+    np.testing.assert_array_equal(x_at_shutdown["imex"], x_at_shutdown["dopri5"])  # the burn: DP5 in both
+    (imex_engine, imex_run), (dp5_engine, dp5_run) = runs["imex"], runs["dopri5"]
+    assert imex_engine.quiet_steps > 0 and dp5_engine.quiet_steps == 0
+    assert late_steps["imex"] <= 3.1 and late_steps["dopri5"] >= 8.0, late_steps
+    assert imex_engine.solver_settings()["quiet_integrator"].startswith("ARK5(4)8L[2]SA")
+    for name, bound in (("joint_angles", 1e-6), ("motor_torques", 1e-3), ("link_deflection", 1e-8)):
+        assert np.max(np.abs(imex_run.observables[name] - dp5_run.observables[name])) < bound, name
