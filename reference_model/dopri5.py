@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from reference_model.core import rhs
-from reference_model.integration import accepted_step, rejected_step
+from reference_model.integration import ACCEPTED, NON_FINITE, UNDERFLOW, judge_step, step_toward
 
 # --- the Dormand–Prince 5(4) tableau: nodes c, stages a, 5th-order weights b, error weights e = b − b̂
 _C = np.array([0.0, 1.0 / 5, 3.0 / 10, 4.0 / 5, 8.0 / 9, 1.0, 1.0])
@@ -55,11 +55,8 @@ def integrate_dopri5(x0, t0, t1, h, rtol, atol, hmax, u, m, sw):
     err_old = 1e-4
     rejected = False
     while t < t1:
-        last = False
         h_nominal = h
-        if t + h >= t1 - 1e-12 * max(1.0, abs(t1)):
-            h = t1 - t
-            last = True
+        h, last = step_toward(t, t1, h)
         for st in range(1, 7):
             xs = x.copy()
             for j in range(st):
@@ -74,24 +71,18 @@ def integrate_dopri5(x0, t0, t1, h, rtol, atol, hmax, u, m, sw):
                 e += _E[st] * K[st, c]
             sc_c = atol[c] + rtol * max(abs(x[c]), abs(xn[c]))
             err = max(err, abs(h * e) / sc_c)
-        if not np.isfinite(err):
-            if h < 1e-12:
-                return x, h, nacc, nrej, 1
-            h *= 0.2
-            nrej += 1
-            rejected = True
-            continue
-        if err <= 1.0:
+        verdict, h_next, err_old = judge_step(err, h, h_nominal, err_old, rejected, last, hmax)
+        if verdict == ACCEPTED:
             t = t1 if last else t + h
             x = xn
             K[0] = K[6]
             nacc += 1
-            h, err_old = accepted_step(h, h_nominal, err, err_old, rejected, last, hmax)
-            rejected = False
+        elif verdict == NON_FINITE:
+            return x, h, nacc, nrej, 1
         else:
-            h = rejected_step(h, err)
             nrej += 1
-            rejected = True
-            if h < 1e-13:
-                return x, h, nacc, nrej, 2
+        rejected = verdict != ACCEPTED
+        h = h_next
+        if verdict == UNDERFLOW:
+            return x, h, nacc, nrej, 2
     return x, h, nacc, nrej, 0

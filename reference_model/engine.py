@@ -6,7 +6,8 @@ the work, each named by its job as in `exudyn_model/` (so the two engines read s
     core.py        the compiled equations of motion: kinematics (A.1, A.2), one link (A.3),
                    the coupled system and its constraint forces (3)–(12), the right-hand side
     field.py       the tidal field about the co-moving point O (kernels used by core)
-    stepping.py    advance: one control interval by DP5(4) (dopri5.py) or TR-BDF2 (trbdf2.py)
+    stepping.py    advance: one control interval by DP5(4) (dopri5.py), TR-BDF2 (trbdf2.py)
+                   or the IMEX pair (imex.py); a quiet segment's by the quiet integrator
     switching.py   capture, release, basis switch, plastic impact
     observe.py     sensors, observables, energy, momentum
     modes.py       linearisation: the linear plant, coupled frequencies

@@ -1,6 +1,7 @@
 """What the reference's integrators share (numba): the PI step-size controller of the
-embedded 5(4) pairs (`dopri5.py`, `imex.py`) and finite-difference Jacobian columns of
-`core.rhs` (`trbdf2.py`, `imex.py`).
+embedded 5(4) pairs (`dopri5.py`, `imex.py`: the step toward the interval's end, the
+verdict on a step from its error) and finite-difference Jacobian columns of `core.rhs`
+(`trbdf2.py`, `imex.py`).
 """
 
 from __future__ import annotations
@@ -9,6 +10,39 @@ import numpy as np
 from numba import njit
 
 from reference_model.core import rhs
+
+
+#: verdicts of `judge_step`
+ACCEPTED = 0
+REJECTED = 1  # retry from the same state with the returned step
+NON_FINITE = 2  # give up: a non-finite error at a step below 1e-12 s (the integrators' status 1)
+UNDERFLOW = 3  # give up: the step fell below 1e-13 s (status 2)
+
+
+@njit(cache=True, inline="always")
+def step_toward(t, t1, h):
+    """The step from t toward the interval's end t1: h, or exactly what is left when h
+    reaches t1 (to within round-off).  Returns (step, True if it lands on t1)."""
+    if t + h >= t1 - 1e-12 * max(1.0, abs(t1)):
+        return t1 - t, True
+    return h, False
+
+
+@njit(cache=True, inline="always")
+def judge_step(err, h, h_nominal, err_old, rejected, last, hmax):
+    """The verdict on a step of size h with scaled error norm err (≤ 1 accepts): (verdict,
+    the next step size, err_old for the next step).  A non-finite error retries at h/5."""
+    if not np.isfinite(err):
+        if h < 1e-12:
+            return NON_FINITE, h, err_old
+        return REJECTED, 0.2 * h, err_old
+    if err <= 1.0:
+        h_next, err_next = accepted_step(h, h_nominal, err, err_old, rejected, last, hmax)
+        return ACCEPTED, h_next, err_next
+    h_next = rejected_step(h, err)
+    if h_next < 1e-13:
+        return UNDERFLOW, h_next, err_old
+    return REJECTED, h_next, err_old
 
 
 @njit(cache=True, inline="always")
