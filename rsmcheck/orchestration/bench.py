@@ -77,7 +77,7 @@ print(json.dumps({"case": name, "engine": engine_name, "variant": "short" if sho
 SPLIT_KEYS = ("samples", "wall_s", "wall_integrator_s", *(f"wall_{part}_s" for part in SPLIT))
 #: the engine settings and counts that decide a run's cost, stored beside its times so that
 #: a figure can be traced to what was run (the variant's own [solver] / [exudyn] settings)
-SOLVER_KEYS = ("steps", "rejected_steps", "h_max", "rtol", "step", "substeps", "links",
+SOLVER_KEYS = ("steps", "rejected_steps", "quiet_steps", "h_max", "rtol", "step", "substeps", "links",
                "newton_iterations", "newton_retries", "jacobians", "jacobian_per_step", "newton_atol")
 #: the parts of a control sample's wall time (`per_sample_us`), in the table's order
 PARTS = ("integrator", "engine", "sensors", "controller", "observe", "runner")

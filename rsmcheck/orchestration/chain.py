@@ -268,7 +268,8 @@ def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory 
 #: the solver entries that count (each phase's engine counts from zero): summed over the
 #: phases of a chained run, as are the wall times; the other entries are settings, the first
 #: phase's
-COUNTS = ("steps", "rejected_steps", "samples", "newton_iterations", "newton_retries", "jacobians", "restarts")
+COUNTS = ("steps", "rejected_steps", "quiet_steps", "samples", "newton_iterations", "newton_retries", "jacobians",
+          "restarts")
 
 
 def _concatenate(engine: str, pieces: list[tuple[float, EngineRun]]) -> EngineRun:

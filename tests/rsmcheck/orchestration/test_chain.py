@@ -27,3 +27,12 @@ def test_a_chained_run_counts_the_work_of_all_its_phases():
     assert run.solver == {"steps": 30, "samples": 15, "newton_iterations": 43, "jacobians": 5, "newton_retries": 1,
                           "restarts": 5, "wall_s": 3.5, "substeps": 2, "links": "ANCFCable2D x 8"}
     np.testing.assert_array_equal(run.observables["time"], [0.0, 0.5, 1.0, 1.0, 2.0, 3.0])
+
+
+def test_the_quiet_integrators_steps_are_summed_from_the_first_phase_that_has_one():
+    """The reference reports `quiet_steps` only where a case names a quiet integrator (p4,
+    p5): the chained run sums them over the phases that have them."""
+    phases = [(0.0, _phase(1.0, {"steps": 10})), (1.0, _phase(1.0, {"steps": 20, "quiet_steps": 7})),
+              (2.0, _phase(1.0, {"steps": 30, "quiet_steps": 5}))]
+    run = _concatenate("reference", phases)
+    assert run.solver == {"steps": 60, "quiet_steps": 12}
