@@ -200,5 +200,8 @@ def test_the_quiet_segments_go_to_the_quiet_integrator():
     assert imex_engine.quiet_steps > 0 and dp5_engine.quiet_steps == 0
     assert late_steps["imex"] <= 3.1 and late_steps["dopri5"] >= 8.0, late_steps
     assert imex_engine.solver_settings()["quiet_integrator"].startswith("ARK5(4)8L[2]SA")
-    for name, bound in (("joint_angles", 1e-6), ("motor_torques", 1e-3), ("link_deflection", 1e-8)):
+    # measured: 2.15e-7 rad, 1.70e-4 N·m, 5.8e-10 m, of the order of either integrator's own
+    # error against rtol 1e-10 (benchmarks/README.md); the bounds are 3.5–6× those, far
+    # below the engines' differences
+    for name, bound in (("joint_angles", 1e-6), ("motor_torques", 1e-3), ("link_deflection", 2e-9)):
         assert np.max(np.abs(imex_run.observables[name] - dp5_run.observables[name])) < bound, name
