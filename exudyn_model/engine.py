@@ -65,6 +65,10 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
       substeps        generalized-α steps per control period (h = control_period/substeps;
                       default: the case's [exudyn] table, else 2; so are constraints and
                       restart_threshold)
+      quiet_substeps  steps per control interval of a quiet segment (an interval longer
+                      than the case's control period, e.g. a coast sampled at 5 ms); None
+                      (default): the step h of the other intervals.  A study option: no case
+                      can afford a longer step there (docs/exudyn.md §4, "Quiet segments")
       spectral_radius ρ∞ of generalized-α
       newton_rtol     relative Newton tolerance
       field           build the field/thrust machinery (default: when the case has an orbit)
@@ -89,6 +93,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
 
     def __init__(self, case: Case, params: Params | None = None, rigid: bool = False,
                  n_elements: int | None = None, substeps: int | None = None,
+                 quiet_substeps: int | None = None,
                  spectral_radius: float = SPECTRAL_RADIUS_DEFAULT, newton_rtol: float = NEWTON_RTOL_DEFAULT,
                  newton_atol: float | None = None, jacobian_per_step: bool | None = None,
                  field: bool | None = None, restart_on_input_change: bool = True,
@@ -101,6 +106,9 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         given = case.exudyn
         self.n_elements = int(first_given(n_elements, given.n_elements, links.N_ELEMENTS_DEFAULT))
         self.substeps = int(first_given(substeps, given.substeps, SUBSTEPS_DEFAULT))
+        self.quiet_substeps = None if quiet_substeps is None else int(quiet_substeps)
+        if self.quiet_substeps is not None and self.quiet_substeps < 1:
+            raise ValueError(f"quiet_substeps must be ≥ 1, got {quiet_substeps!r}")
         self.spectral_radius = float(spectral_radius)
         self.newton_rtol = float(newton_rtol)
         p = self.params
@@ -137,6 +145,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0, "newton_retries": 0,
                       "wall_integrator_s": 0.0}  # s waiting on Exudyn's solver (rsmcheck bench)
         self._restart_pending = False
+        self._h_now: float | None = None  # the generalized-α step of the last interval [s]
         self.start_label = "initial" if start is None else "rigid end state"
         self._base_start = (np.asarray(init.base_pose, float), np.asarray(init.base_rate, float))
         self._build(init)
@@ -177,7 +186,8 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                 "wall_integrator_s": self.stats["wall_integrator_s"],
                 "stepping": self.stepping, "constraints": self.constraints,
                 "axial_damping": self.axial_damping,
-                "restart_threshold": self.restart_threshold, "start": self.start_label}
+                "restart_threshold": self.restart_threshold, "start": self.start_label,
+                **({} if self.quiet_substeps is None else {"quiet_substeps": self.quiet_substeps})}
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "exudyn", "numpy")

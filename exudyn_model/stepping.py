@@ -95,19 +95,34 @@ class SteppingMixin:
         # the runner may advance by other intervals than the case's control period (a
         # segment's own control_period, an interval clipped at a segment boundary): the step
         # stays h = control_period/substeps; an interval that is not a whole number of steps
-        # is done on its own with equal steps ≤ h
-        h = self.dt / self.substeps
+        # is done on its own with equal steps ≤ h.  An interval longer than the control
+        # period belongs to a quiet segment: with `quiet_substeps` it is cut into that many
+        # steps (docs/exudyn.md §4, "Quiet segments"), and at every change of h the
+        # integrator restarts with consistent accelerations
+        h = self._step_length(span)
+        if self._h_now is not None and abs(h - self._h_now) <= 1e-9 * h:
+            h = self._h_now  # the same step: spans differ by the clock's round-off
+        elif self._h_now is not None:
+            self._restart()
+        self._h_now = h
         n = span / h
         whole = round(n) >= 1 and abs(n - round(n)) < 1e-6
         n_steps = int(round(n)) if whole else max(1, math.ceil(n - 1e-6))
         tic = time.perf_counter()
         if self._worker is not None and whole:
-            ok = self._worker.step(self.t, t_next)
+            ok = self._worker.step(self.t, t_next, h)
+            clock = float(mbs.systemData.GetTime())
+            if ok and abs(clock - t_next) > 1e-2 * h:
+                # a step count other than span/h lands a fraction h/n_steps off the sample;
+                # the clock's own round-off drift stays below ~1e-7 s (docs/exudyn.md §5)
+                raise SimulationDiverged(self.name, self.t, "?", f"Exudyn's clock at the sample {t_next!r} s "
+                                         f"(steps of {h!r} s)", clock)
         else:
             self._pause()
             solver.it.startTime = self.t
             solver.it.endTime = t_next
             solver.it.currentStepSize = span / n_steps
+            _allow_step(solver.it, h)
             solver.it.adaptiveStep = True  # (the worker turns it off) lets the last step land on t_next
             ok = solver.SolveSteps(mbs, self.settings)
         if not ok:
@@ -127,6 +142,14 @@ class SteppingMixin:
             self._advance_orbit(t_next - self.t, self._thrust_inertia.mean_acceleration(t_next - self.t))
             self.m_used += self._mass_flow(thrust) * (t_next - self.t)
         self.t = t_next
+
+    def _step_length(self, span: float) -> float:
+        """The generalized-α step h for a control interval of length `span` [s]:
+        control_period/substeps, or span/quiet_substeps for the interval of a quiet segment
+        (longer than the control period) when the engine is built with `quiet_substeps`."""
+        if self.quiet_substeps is not None and span > self.dt * (1.0 + 1e-6):
+            return span / self.quiet_substeps
+        return self.dt / self.substeps
 
     def _retry_looser(self, t_next: float) -> bool:
         """Retry a step whose Newton iteration stalled, from the start of that step to
@@ -151,7 +174,7 @@ class SteppingMixin:
         q0 = np.asarray(sd.GetODE2Coordinates(configuration=sos))
         v0 = np.asarray(sd.GetODE2Coordinates_t(configuration=sos))
         t0 = float(sd.GetTime(sos))
-        h = self.dt / self.substeps
+        h = self._h_now
         if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(v0))):
             return False
         if not self.t - 0.25 * h <= t0 < t_next - 0.25 * h:
@@ -173,6 +196,7 @@ class SteppingMixin:
             n = max(1, math.ceil((t_next - t0) / h - 1e-3))  # the clock's drift is not a step
             it.startTime, it.endTime = t0, t_next
             it.currentStepSize = (t_next - t0) / n
+            _allow_step(it, h)
             it.adaptiveStep = True
             ok = bool(self.solver.SolveSteps(self.mbs, self.settings))
         finally:
@@ -260,6 +284,15 @@ class SteppingMixin:
                 or abs(held[1] - old[1]) > f * a.torque_max or abs(held[2] - old[2]) > f * a.thrust)
 
 
+def _allow_step(it, h: float) -> None:
+    """Let Exudyn's solver take the step h [s]: it clips every step to `maxStepSize`, which
+    `InitializeSolver` and every restart set from the settings (control_period/substeps, to
+    round-off).  Raised only for a longer step (a quiet segment's), so that the default
+    steps stay bit for bit what they were."""
+    if it.maxStepSize < h * (1.0 - 1e-12):
+        it.maxStepSize = h
+
+
 def _same_float(a: float, b: float) -> bool:
     """a and b are the same number, to the sign of zero (0.0 == -0.0 would hide a change of
     a load's bits)."""
@@ -283,13 +316,8 @@ class _Worker:
     def __init__(self, engine: SteppingMixin):
         # no reference to the engine itself (the paused thread would keep it alive): the
         # engine's finalizer stops the thread when the engine is dropped
-        self.mbs, self.solver, self.settings, self.dt = engine.mbs, engine.solver, engine.settings, engine.dt
-        self.h = engine.dt / engine.substeps
-        # the step that ends a control interval is found within a quarter step: Exudyn's
-        # clock (t += h) drifts from the runner's samples by up to ~1e-7 s over a long run
-        # (docs/exudyn.md §5, item 5); matched to 1e-6 h it ran one step past a sample once
-        # the drift exceeded 5e-10 s, which then counted as a failed step and a retry
-        self.tol = 0.25 * self.h
+        self.mbs, self.solver, self.settings = engine.mbs, engine.solver, engine.settings
+        self.h = engine.dt / engine.substeps  # the fixed step of the running SolveSteps
         self.target = math.inf  # pause at the end of the step that reaches this time
         self.go = threading.Event()
         self.arrived = threading.Event()
@@ -313,8 +341,11 @@ class _Worker:
 
     def ends_interval(self, t: float) -> bool:
         """True for the step (ending at t by Exudyn's clock) that ends the current
-        control interval."""
-        return t >= self.target - self.tol
+        control interval.  Found within a quarter step: Exudyn's clock (t += h) drifts from
+        the runner's samples by up to ~1e-7 s over a long run (docs/exudyn.md §5, item 5);
+        matched to 1e-6 h it ran one step past a sample once the drift exceeded 5e-10 s,
+        which then counted as a failed step and a retry."""
+        return t >= self.target - 0.25 * self.h
 
     def _run(self) -> None:
         try:
@@ -324,9 +355,13 @@ class _Worker:
         finally:
             self.arrived.set()
 
-    def step(self, t: float, t_next: float) -> bool:
+    def step(self, t: float, t_next: float, h: float) -> bool:
         """Integrate from t to t_next (the next control sample, a whole number of steps h
-        on); False on failure."""
+        on); False on failure.  A new h ends the running SolveSteps at t and starts one with
+        the new step."""
+        if h != self.h:
+            self.stop()
+            self.h = h
         self.target = t_next
         if self.thread is None or not self.thread.is_alive():
             solver = self.solver
@@ -334,6 +369,7 @@ class _Worker:
             solver.it.endTime = 1e30
             solver.it.adaptiveStep = False
             solver.it.currentStepSize = self.h
+            _allow_step(solver.it, self.h)
             self.t_start = t
             self.ok = True
             self.arrived.clear()
@@ -349,7 +385,7 @@ class _Worker:
             self.thread.join()
             self.thread = None
             return False
-        return abs(self.mbs.systemData.GetTime() - t_next) < self.tol
+        return abs(self.mbs.systemData.GetTime() - t_next) < 0.25 * self.h
 
     def stop(self) -> None:
         if self.thread is not None and self.thread.is_alive():

@@ -308,3 +308,42 @@ def test_the_worker_ends_an_interval_within_a_quarter_step():
     worker.target = 2e-3
     assert worker.ends_interval(2e-3 - 3e-9) and worker.ends_interval(2e-3 + 3e-9)
     assert not worker.ends_interval(2e-3 - 0.5 * h)
+
+
+@pytest.mark.parametrize("stepping", ["continuous", "period"])
+def test_quiet_intervals_take_quiet_substeps_steps(free_drift, stepping):
+    """With `quiet_substeps` an interval longer than the control period (a quiet segment's)
+    is cut into that many steps, and the 1 ms intervals around it keep h = 0.5 ms.  Exudyn
+    clips the step to the maxStepSize it took from the settings: until the worker set it,
+    the 2.5 ms step ran as 0.5 ms steps and stopped 0.5 ms short of a 5 ms sample (within
+    the worker's quarter step), which the clock check below now refuses."""
+    eng = ExudynEngine(free_drift, rigid=True, stepping=stepping, quiet_substeps=2)
+    assert eng.solver_settings()["quiet_substeps"] == 2
+    t = 0.0
+    for span, h in [(1e-3, 5e-4), (5e-3, 2.5e-3), (5e-3, 2.5e-3), (1e-3, 5e-4)]:
+        t += span
+        eng.advance(t, Inputs())
+        assert eng.solver.it.currentStepSize == pytest.approx(h, rel=1e-12)
+        assert eng.mbs.systemData.GetTime() == pytest.approx(t, abs=1e-12)
+    assert eng.stats["steps"] == 2 + 2 + 2 + 2
+    assert eng.stats["restarts"] == 2  # one at each change of h
+    with pytest.raises(ValueError, match="quiet_substeps"):
+        ExudynEngine(free_drift, rigid=True, quiet_substeps=0)
+
+
+def test_a_sample_missed_by_the_solver_clock_is_an_error(free_drift, monkeypatch):
+    """The worker pauses at the step that ends within h/4 of the sample; a clock that
+    ends further from the sample than h/100 (a wrong step count) stops the run with the
+    clock's time, instead of carrying a state that is a fraction of a step behind."""
+    eng = ExudynEngine(free_drift, rigid=True)
+    eng.advance(1e-3, Inputs())
+    step = eng._worker.step
+
+    def short(t, t_next, h):
+        ok = step(t, t_next, h)
+        eng.mbs.systemData.SetTime(t_next - 0.2 * h)
+        return ok
+
+    monkeypatch.setattr(eng._worker, "step", short)
+    with pytest.raises(SimulationDiverged, match="clock"):
+        eng.advance(2e-3, Inputs())
