@@ -287,9 +287,9 @@ class SteppingMixin:
 def _allow_step(it, h: float) -> None:
     """Let Exudyn's solver take the step h [s]: it clips every step to `maxStepSize`, which
     `InitializeSolver` and every restart set from the settings (control_period/substeps, to
-    round-off).  Raised only for a longer step (a quiet segment's), so that the default
-    steps stay bit for bit what they were."""
-    if it.maxStepSize < h * (1.0 - 1e-12):
+    round-off: (t + Δt − t)/substeps, 1e-11 off at t = 60 s).  Raised only for a longer
+    step (a quiet segment's), so that the default steps stay bit for bit what they were."""
+    if it.maxStepSize < h * (1.0 - 1e-6):
         it.maxStepSize = h
 
 
