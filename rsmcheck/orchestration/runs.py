@@ -27,13 +27,14 @@ import multiprocessing
 import pickle
 import tempfile
 import time
+import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from rsmcheck.cases import Case, load_case, sibling_case
-from rsmcheck.errors import InputError
+from rsmcheck.errors import InputError, SimulationDiverged
 from rsmcheck.orchestration.chain import run_mission
 from rsmcheck.orchestration.engines import ENGINES, make_engine
 from rsmcheck.runner import run
@@ -113,20 +114,34 @@ class Outcome:
 
     @property
     def error_text(self) -> str:
-        return f"{type(self.error).__name__}: {self.error}" if self.error is not None else ""
+        if self.error is None:
+            return ""
+        return _error_line(self.error)
+
+
+def _error_line(exc: BaseException) -> str:
+    """'Type: message (note) …' of an exception, on one line."""
+    notes = "".join(f" ({n})" for n in getattr(exc, "__notes__", ()))
+    return f"{type(exc).__name__}: {exc}{notes}"
 
 
 def _call(fn: Callable[..., Any], args: tuple) -> Outcome:
     """`fn(*args)` timed; an exception is returned, as itself when it pickles (rsmcheck's
-    errors do: a bad input stays an InputError), else as a RuntimeError with its text."""
+    errors do: a bad input stays an InputError), else as a RuntimeError with its text.
+    The traceback does not cross the process boundary, so an exception that is not one of
+    rsmcheck's own (a fault in the code, not in the input or the simulation) takes the
+    place it was raised at as a note: a bare `StopIteration` says nothing."""
     t0 = time.monotonic()
     try:
         return Outcome(fn(*args), None, time.monotonic() - t0)
     except Exception as exc:  # noqa: BLE001 — the caller decides what a failure means
+        if not isinstance(exc, (InputError, SimulationDiverged)) and exc.__traceback__ is not None:
+            frame = traceback.extract_tb(exc.__traceback__)[-1]
+            exc.add_note(f"raised at {frame.filename}:{frame.lineno} in {frame.name}")
         try:
             pickle.loads(pickle.dumps(exc))
         except Exception:  # noqa: BLE001
-            exc = RuntimeError(f"{type(exc).__name__}: {exc}")
+            exc = RuntimeError(_error_line(exc))
         exc.__traceback__ = None
         return Outcome(None, exc, time.monotonic() - t0)
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -192,3 +193,24 @@ def test_check_and_the_report_give_the_same_rows_from_the_same_runs(run_pool, tm
     reported = verdict(Collected(tmp_path, [case], True, list(ENGINES)), fixed_digest)["checks"]
     in_memory = [r.as_dict() for r in case_rows(case, True, pair)]
     assert checked and checked == json.loads(dumps_json(reported)) == json.loads(dumps_json(in_memory))
+
+
+def _next_of_nothing():
+    return next(iter(()))
+
+
+def test_a_fault_in_the_code_is_named_with_the_place_it_was_raised_at():
+    """The traceback stays in the worker; a bare `StopIteration` (an engine option taken
+    from three Nones, seen 2026-11-26) said nothing of where.  The exception carries the
+    file, line and function as a note, through pickling, and the progress line shows it;
+    rsmcheck's own errors (their messages name the input or the time) get none."""
+    job = Job("broken", _next_of_nothing, (), 1.0)
+    lines = []
+    err = run_jobs([job], lines.append, workers=0)[job].error
+    assert isinstance(err, StopIteration)
+    note = f"raised at {__file__}:"
+    assert any(n.startswith(note) and n.endswith("in _next_of_nothing") for n in err.__notes__)
+    assert pickle.loads(pickle.dumps(err)).__notes__ == err.__notes__
+    assert "in _next_of_nothing" in lines[0]
+    bad = Job("bad input", load_case, ("no_such_case",), 1.0)
+    assert not getattr(run_jobs([bad], workers=0)[bad].error, "__notes__", None)
