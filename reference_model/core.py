@@ -339,8 +339,10 @@ def momentum(x, m, sw):
 # One link in Newtonian coordinates, eq. (A.3)
 # =====================================================================================
 @njit(cache=True, inline="always")
-def link_newton(i, q, qd, th, om, m, basis):
-    """Floating-frame mass matrix M_X and force V + elastic of link i (eq. A.3 for one body).
+def link_newton(i, q, qd, th, om, m, basis, M, V):
+    """Floating-frame mass matrix M_X and force V + elastic of link i (eq. A.3 for one body),
+    written into the leading (3 + n) × (3 + n) block of M and the first 3 + n entries of V
+    (work arrays of `_link_rows`, at least that large).
 
     With S1 = ∫ρ u dξ = (m L/2, φ̄·a) and ṙ = Ṙ + θ̇ A S u + A e_y Φ ȧ:
         M_RR = m I,  M_Rθ = A S S1,  M_Ra = A e_y φ̄ᵀ,
@@ -358,8 +360,8 @@ def link_newton(i, q, qd, th, om, m, basis):
     s = math.sin(th[i])
     w = om[i]
     nx = 3 + n
-    M = np.zeros((nx, nx))
-    V = np.zeros(nx)
+    M[:nx, :nx] = 0.0
+    V[:nx] = 0.0
     s1x = 0.5 * mass * sc[S_L]
     s1y = 0.0
     pbd = 0.0  # φ̄·ȧ
@@ -402,7 +404,6 @@ def link_newton(i, q, qd, th, om, m, basis):
         vth += -2.0 * w * q[o + a] * mfd
         V[3 + a] = w * w * mfa - kf
     V[2] = vth
-    return M, V
 
 
 @njit(cache=True, inline="always")
@@ -419,8 +420,9 @@ def _gauss_point(i, b, g, q, c, s, R, m, rel):
 
 
 @njit(cache=True, inline="always")
-def _field_link(i, q, th, R, rO, aunif, m, basis, M):
-    """Generalised force of the acceleration field on link i, over its distributed mass.
+def _field_link(i, q, th, R, rO, aunif, m, basis, M, Q, rel):
+    """Generalised force of the acceleration field on link i, over its distributed mass,
+    into the first 3 + n entries of Q (`rel`: a 2-vector of scratch).
 
     The uniform part (thrust inertia of the reference point, −a_thr) is exact:
     Q = M_X[:, R] a_unif.  The tidal part is integrated with Gauss points along the beam:
@@ -429,14 +431,13 @@ def _field_link(i, q, th, R, rO, aunif, m, basis, M):
     sc = m.sc
     n = m.nm[i]
     b = basis[i]
-    Q = np.zeros(3 + n)
     for r in range(3 + n):
         Q[r] = M[r, 0] * aunif[0] + M[r, 1] * aunif[1]
     if sc[S_ORBIT] == 0.0:
-        return Q
+        return
     c = math.cos(th[i])
     s = math.sin(th[i])
-    rel = np.zeros(2)
+    rel[:] = 0.0
     rho = sc[S_RHO]
     for g in range(m.x_g.shape[0]):
         wg = _gauss_point(i, b, g, q, c, s, R, m, rel)
@@ -450,7 +451,6 @@ def _field_link(i, q, th, R, rO, aunif, m, basis, M):
         Q[2] += -(s * ux + c * wg) * gx + (c * ux - s * wg) * gy
         for a in range(n):
             Q[3 + a] += m.phi_g[i, b, g, a] * (-s * gx + c * gy)
-    return Q
 
 
 @njit(cache=True)
@@ -505,23 +505,31 @@ def _link_rows(Mg, f, q, qd, kin, rO, aunif, m, basis):
     with c0 the first column of the own amplitudes.
     """
     th, om, R, JR, Jth, cR = kin.th, kin.om, kin.R, kin.JR, kin.Jth, kin.cR
+    # work arrays, one set for the six links (a link's block is its leading part): the
+    # same arithmetic as fresh arrays per link, without the 48 allocations
+    nx_max = 3 + m.nq
+    M = np.empty((nx_max, nx_max))
+    V = np.empty(nx_max)
+    Q = np.empty(nx_max)
+    F = np.empty(nx_max)
+    rel = np.empty(2)
+    cols = np.empty(m.nq, dtype=np.int64)
+    J3 = np.empty((3, m.nq))  # the frame rows of J: R (2) and θ
+    MJ = np.empty((nx_max, m.nq))
     for i in range(N_LINKS):
         n = m.nm[i]
         nx = 3 + n
-        M, V = link_newton(i, q, qd, th, om, m, basis)
-        Q = _field_link(i, q, th, R, rO, aunif, m, basis, M)
-        cols = _arm_columns(i, m)
-        nc = cols.shape[0]
+        link_newton(i, q, qd, th, om, m, basis, M, V)
+        _field_link(i, q, th, R, rO, aunif, m, basis, M, Q, rel)
+        nc = _arm_columns(i, m, cols)
         c0 = nc - n  # the link's own amplitudes are the last columns
-        J3 = np.empty((3, nc))  # the frame rows of J: R (2) and θ
         for c in range(nc):
             J3[0, c] = JR[i, 0, cols[c]]
             J3[1, c] = JR[i, 1, cols[c]]
             J3[2, c] = Jth[i, cols[c]]
-        F = V + Q
         for r in range(nx):
+            F[r] = V[r] + Q[r]
             F[r] -= M[r, 0] * cR[i, 0] + M[r, 1] * cR[i, 1]  # − M J̇q̇ (only R has J̇q̇ ≠ 0)
-        MJ = np.empty((nx, nc))
         for r in range(nx):
             for c in range(nc):
                 v = M[r, 0] * J3[0, c] + M[r, 1] * J3[1, c] + M[r, 2] * J3[2, c]
@@ -544,15 +552,12 @@ def _link_rows(Mg, f, q, qd, kin, rO, aunif, m, basis):
 
 
 @njit(cache=True, inline="always")
-def _arm_columns(i, m):
-    """Columns of q_m the Newtonian coordinates of link i depend on: the base (3), the joints
-    of its arm up to it, the amplitudes of its arm's links up to it (its own last)."""
+def _arm_columns(i, m, cols):
+    """Columns of q_m the Newtonian coordinates of link i depend on, into the first entries
+    of cols: the base (3), the joints of its arm up to it, the amplitudes of its arm's links
+    up to it (its own last).  Returns their number."""
     k = i // 3
     first = 3 * k
-    n_amp = 0
-    for j in range(first, i + 1):
-        n_amp += m.nm[j]
-    cols = np.empty(3 + (i - first + 1) + n_amp, dtype=np.int64)
     cols[0], cols[1], cols[2] = 0, 1, 2
     c = 3
     for j in range(first, i + 1):
@@ -562,7 +567,7 @@ def _arm_columns(i, m):
         for a in range(m.nm[j]):
             cols[c] = m.mo[j] + a
             c += 1
-    return cols
+    return c
 
 
 @njit(cache=True, inline="always")

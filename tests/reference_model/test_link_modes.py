@@ -42,7 +42,9 @@ def _link_matrices(model: ReferenceModel, basis: int, link: int = 2) -> tuple[np
     def newton(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         qd = np.zeros(nq)
         th, om = model.kinematics(q, qd, cfg)[:2]
-        return core.link_newton(link, q, qd, th, om, model.arrays, cfg.basis)
+        M, V = np.empty((3 + n, 3 + n)), np.empty(3 + n)
+        core.link_newton(link, q, qd, th, om, model.arrays, cfg.basis, M, V)
+        return M, V
 
     q0 = np.zeros(nq)
     M, V0 = newton(q0)
