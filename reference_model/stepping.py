@@ -76,7 +76,7 @@ class SteppingMixin:
         u = self.u_vector(inputs)
         # an interval longer than the case's control period belongs to a quiet segment (its
         # own, longer control_period): the quiet integrator's (docs/physics.md §7)
-        quiet = t_next - self.t > self.case.solver.control_period * (1.0 + 1e-6)
+        quiet = self.case.solver.is_quiet(t_next - self.t)
         name = self.quiet_integrator if quiet else self.integrator
         h0, h_max = self._h[name], self._h_max[name]
         tic = time.perf_counter()

@@ -163,6 +163,11 @@ class SolverSpec:
     def output_every(self) -> int:
         return int(round(self.output_period / self.control_period))
 
+    def is_quiet(self, span: float) -> bool:
+        """A control interval of `span` [s] longer than the case's control period belongs
+        to a quiet segment (sampled at its own, longer control_period; docs/physics.md §7)."""
+        return span > self.control_period * (1.0 + 1e-6)
+
 
 def first_given(*values):
     """The first of `values` that is not None: an engine setting from its explicit option,
