@@ -114,9 +114,7 @@ class Outcome:
 
     @property
     def error_text(self) -> str:
-        if self.error is None:
-            return ""
-        return _error_line(self.error)
+        return _error_line(self.error) if self.error is not None else ""
 
 
 def _error_line(exc: BaseException) -> str:
