@@ -4,7 +4,7 @@ two engines read side by side):
 
     build.py      the mbs: base, target, links (`links.py`), hubs, joints, rotors, grasps,
                   bistops, actuators, the field carrier; index tables; solver settings
-    stepping.py   advance: the solver's worker thread (`_Worker`), restarts, retries, inputs
+    stepping.py   advance: the solver's greenlet (`_Worker`), restarts, retries, inputs
     field.py      the tidal field and the thrust inertia as generalised forces, the orbit of O
     switching.py  capture, release, basis switch, plastic impact
     observe.py    sensors, observables, energy, momentum
@@ -20,7 +20,6 @@ The model and its reasons: `build.py` and docs/exudyn.md.
 
 from __future__ import annotations
 
-import weakref
 
 import numpy as np
 
@@ -151,9 +150,9 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self._build(init)
         self._index()
         self._init_solver()
+        # a run left suspended when the engine is dropped is ended by the next run started on
+        # this thread (`_Worker`: never from a finalizer, which may run inside a pybind11 call)
         self._worker = _Worker(self) if stepping == "continuous" else None
-        if self._worker is not None:
-            weakref.finalize(self, _Worker.stop, self._worker)
 
     # ---- Engine protocol (rsmcheck.engine.Engine) ------------------------------------
     def time(self) -> float:

@@ -209,7 +209,7 @@ class _ThrustInertia:
     generalized-α balances forces at t_n+1), so the direction lags by O(h²).  The tidal
     part and the masses are held over the control interval (`hold`).
 
-    Holds no reference to the engine (the paused solver thread keeps this object alive).
+    Holds no reference to the engine (the suspended solver run keeps this object alive).
     """
 
     def __init__(self, carrier: int, base_node: int, theta_ref: float):

@@ -2,7 +2,7 @@
 (zero-order hold, docs/physics.md §6), exactly to the next sample.
 
 Integration: Exudyn's generalized-α (index 3) with a fixed step, `substeps` per control
-period.  One `SolveSteps` runs across control periods in a worker thread, paused at every
+period.  One `SolveSteps` runs across control periods in a greenlet, suspended at every
 control sample by a post-step function (`_Worker`), so the algorithmic state and the
 modified-Newton Jacobian carry over; `stepping="period"` calls `SolveSteps` once per period
 instead.  No Python user function runs inside a Newton iteration.
@@ -24,6 +24,7 @@ import threading
 import time
 import timeit
 
+import greenlet
 import numpy as np
 
 sys.exudynFast = True  # the engine's build: import order must not matter
@@ -299,42 +300,59 @@ def _same_float(a: float, b: float) -> bool:
     return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
 
 
+# the thread's suspended `_Worker` run, at most one (`_Worker`'s docstring: pybind11's call stack)
+_SUSPENDED = threading.local()
+
+
 class _Worker:
     """Continuous integration across control periods.
 
     `SolveSteps` forces a new Jacobian (and factorisation) each time it is called: 75 % of
     the cost when it is called once per 1 ms control period.  Here one `SolveSteps` runs in
-    a worker thread over many periods, and a post-step function (Python, once per time
-    step, no computation) pauses it at every control sample: the runner reads sensors and
-    observables and sets the held inputs while the solver waits, then lets it run to the
-    next sample.  Before the model or its state is modified (capture, release, restart)
-    the run is ended cleanly at the current sample (its end time is set to now).  Fixed
-    steps (no step-size adaptation), so every control sample is a step boundary; a Newton
-    failure ends the run and is reported as divergence.
+    a greenlet (a coroutine on the caller's own thread) over many periods, and a post-step
+    function (Python, once per time step, no computation) switches back to the runner at
+    every control sample: the runner reads sensors and observables and sets the held inputs
+    while the solver is suspended, then switches in again to run to the next sample.  Before
+    the model or its state is modified (capture, release, restart) the run is ended cleanly
+    at the current sample (its end time is set to now).  Fixed steps (no step-size
+    adaptation), so every control sample is a step boundary; a Newton failure ends the run
+    and is reported as divergence.
+
+    Until 2026-11-26 the solver ran in a worker thread handed over with two events: a
+    round trip of 45–66 µs on this 2-core machine (a wake-up across cores), ~10 % of a
+    sample; a greenlet switch stays on one thread (docs/exudyn.md §4, "Continuous stepping").
+
+    One suspended run per thread: pybind11 keeps a per-thread stack of the calls in
+    progress (`loader_life_support`), and a `SolveSteps` that returns while another
+    engine's, started after it, is still suspended pops that stack out of order and aborts
+    the process.  So starting a run ends the thread's other suspended run, if any, at its
+    sample (`_SUSPENDED`); that engine's next interval starts a new `SolveSteps` (a new
+    Jacobian).  Only engines advanced in turn on one thread (tests) meet this.  For the same
+    reason nothing ends a run from a finalizer (it may run inside a pybind11 call): the run
+    of a dropped engine stays suspended until the next run on its thread ends it.
     """
 
     def __init__(self, engine: SteppingMixin):
-        # no reference to the engine itself (the paused thread would keep it alive): the
-        # engine's finalizer stops the thread when the engine is dropped
+        # no reference to the engine itself (the suspended greenlet would keep it alive)
         self.mbs, self.solver, self.settings = engine.mbs, engine.solver, engine.settings
         self.h = engine.dt / engine.substeps  # the fixed step of the running SolveSteps
-        self.target = math.inf  # pause at the end of the step that reaches this time
-        self.go = threading.Event()
-        self.arrived = threading.Event()
+        self.target = math.inf  # suspend at the end of the step that reaches this time
         self.command = "continue"
-        self.thread: threading.Thread | None = None
+        self.run: greenlet.greenlet | None = None
         self.ok = True
         self.t_start = 0.0
         self.mbs.SetPostStepUserFunction(self._post_step)
 
     def _post_step(self, mbs, t: float) -> bool:
-        if self.thread is None or threading.current_thread() is not self.thread or t <= self.t_start + 1e-12:
-            return True
+        run = self.run
+        if run is None or greenlet.getcurrent() is not run or t <= self.t_start + 1e-12:
+            return True  # a SolveSteps of the engine's own (a retry, `stepping="period"`)
         if not self.ends_interval(t):
             return True  # a step inside the interval
-        self.arrived.set()
-        self.go.wait()
-        self.go.clear()
+        try:
+            run.parent.switch()  # to the runner, until `step` or `stop` switches back
+        except greenlet.GreenletExit:  # the greenlet is collected while suspended
+            self.command = "stop"
         if self.command == "stop":
             self.solver.it.endTime = t  # the run ends here, cleanly, at this sample
         return True
@@ -347,13 +365,11 @@ class _Worker:
         which then counted as a failed step and a retry."""
         return t >= self.target - 0.25 * self.h
 
-    def _run(self) -> None:
+    def _solve(self) -> None:
         try:
             self.ok = bool(self.solver.SolveSteps(self.mbs, self.settings))
-        except Exception:  # noqa: BLE001 — reported to the main thread as a failed run
+        except Exception:  # noqa: BLE001 — reported to the runner as a failed run
             self.ok = False
-        finally:
-            self.arrived.set()
 
     def step(self, t: float, t_next: float, h: float) -> bool:
         """Integrate from t to t_next (the next control sample, a whole number of steps h
@@ -363,36 +379,38 @@ class _Worker:
             self.stop()
             self.h = h
         self.target = t_next
-        if self.thread is None or not self.thread.is_alive():
+        if self.run is None:
             solver = self.solver
             solver.it.startTime = t
             solver.it.endTime = 1e30
             solver.it.adaptiveStep = False
             solver.it.currentStepSize = self.h
             _allow_step(solver.it, self.h)
+            other = getattr(_SUSPENDED, "worker", None)
+            if other is not None and other is not self:
+                other.stop()
             self.t_start = t
             self.ok = True
-            self.arrived.clear()
-            self.go.clear()
-            self.thread = threading.Thread(target=self._run, name="exudyn-solver", daemon=True)
-            self.thread.start()
+            self.run = greenlet.greenlet(self._solve)
+            _SUSPENDED.worker = self
         else:
             self.command = "continue"
-            self.go.set()
-        self.arrived.wait()
-        self.arrived.clear()
-        if not self.thread.is_alive() or not self.ok:
-            self.thread.join()
-            self.thread = None
+        self.run.switch()
+        if self.run.dead or not self.ok:  # SolveSteps returned before the sample: failed
+            self._ended()
             return False
         return True
 
     def stop(self) -> None:
-        if self.thread is not None and self.thread.is_alive():
+        if self.run is not None and not self.run.dead:
             self.command = "stop"
-            self.go.set()
-            self.thread.join()
-        self.thread = None
+            self.run.switch()  # SolveSteps ends at the current sample and returns
+        self._ended()
+
+    def _ended(self) -> None:
+        self.run = None
+        if getattr(_SUSPENDED, "worker", None) is self:
+            _SUSPENDED.worker = None
 
 
 def rhs_timing(case, n: int = 2000, **engine_options) -> dict[str, float]:

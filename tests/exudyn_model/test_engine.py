@@ -310,6 +310,24 @@ def test_the_worker_ends_an_interval_within_a_quarter_step():
     assert not worker.ends_interval(2e-3 - 0.5 * h)
 
 
+def test_one_suspended_run_per_thread(free_drift):
+    """Two engines advanced in turn on one thread: starting a run ends the other engine's
+    suspended one at its sample (an earlier `SolveSteps` returning before a later one
+    breaks pybind11's per-thread call stack and aborts the process: stepping.py's
+    `_Worker`).  Each engine lands on its samples, and the two, started alike and restarted
+    alike, stay equal to the bit."""
+    a = ExudynEngine(free_drift, rigid=True)
+    b = ExudynEngine(free_drift, rigid=True)
+    for k in range(1, 6):
+        a.advance(k * 1e-3, Inputs())
+        assert a._worker.run is not None and b._worker.run is None
+        b.advance(k * 1e-3, Inputs())
+        assert b._worker.run is not None and a._worker.run is None
+        for eng in (a, b):
+            assert eng.mbs.systemData.GetTime() == pytest.approx(k * 1e-3, abs=1e-12)
+    assert np.array_equal(np.concatenate(a._qv()), np.concatenate(b._qv()))
+
+
 @pytest.mark.parametrize("stepping", ["continuous", "period"])
 def test_quiet_intervals_take_quiet_substeps_steps(free_drift, stepping):
     """With `quiet_substeps` an interval longer than the control period (a quiet segment's)

@@ -219,7 +219,7 @@ def _states(mbs):
 
 
 def test_evaluation_leaves_the_integrator_alone(squeeze):
-    """Evaluated at every control sample while the worker thread is paused (the first call
+    """Evaluated at every control sample while the solver's greenlet is suspended (the first call
     initialises the static solver): every system state (current, start of step, initial,
     accelerations included) is unchanged bit for bit, and so is the trajectory."""
     u = _squeeze_inputs(squeeze)
