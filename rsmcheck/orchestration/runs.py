@@ -272,8 +272,9 @@ class RunSet:
 
     @property
     def failures(self) -> dict[str, str]:
-        """'case / engine' → error text, for every run that could not be made."""
-        return {f"{c} / {e}": f"{type(x).__name__}: {x}" for (c, e), x in self.errors.items()}
+        """'case / engine' → error text, for every run that could not be made (with the
+        place a fault in the code was raised at, as in the progress lines)."""
+        return {f"{c} / {e}": _error_line(x) for (c, e), x in self.errors.items()}
 
 
 def get_runs(cases: Sequence[Case], engines: Sequence[str], short: bool, run_dir: Path | None = None, *,
