@@ -20,7 +20,6 @@ The model and its reasons: `build.py` and docs/exudyn.md.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from exudyn_model import links

@@ -206,9 +206,10 @@ def phase_table(runs: Sequence[dict], engines: Sequence[str]) -> str:
 
 def per_sample_us(split: dict[str, float]) -> dict[str, float]:
     """A run's wall time per control sample [µs], by where it went: `integrator` (the
-    compiled DP5 or Exudyn's `SolveSteps` up to the sample), `engine` (the rest of `advance`: setting the
-    inputs, the field, checks), `sensors`, `controller`, `observe` (the recorded samples,
-    amortised), `runner` (the sampled-data loop itself: events, supervision)."""
+    compiled DP5 or Exudyn's `SolveSteps` up to the sample), `engine` (the rest of
+    `advance`: setting the inputs, the field, checks), `sensors`, `controller`, `observe`
+    (the recorded samples, amortised), `runner` (the sampled-data loop itself: events,
+    supervision)."""
     n = split["samples"]
     advance = split["wall_advance_s"]
     integ = split.get("wall_integrator_s", advance)
