@@ -380,15 +380,15 @@ class _Worker:
             self.h = h
         self.target = t_next
         if self.run is None:
+            other = getattr(_SUSPENDED, "worker", None)
+            if other is not None and other is not self:
+                other.stop()  # one suspended run per thread (class docstring)
             solver = self.solver
             solver.it.startTime = t
             solver.it.endTime = 1e30
             solver.it.adaptiveStep = False
             solver.it.currentStepSize = self.h
             _allow_step(solver.it, self.h)
-            other = getattr(_SUSPENDED, "worker", None)
-            if other is not None and other is not self:
-                other.stop()
             self.t_start = t
             self.ok = True
             self.run = greenlet.greenlet(self._solve)
