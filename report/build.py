@@ -111,10 +111,17 @@ def verdict_rows(verdict: dict) -> list[VerdictRow]:
                                    _margin(r.get("margin")), bool(r["pass"]), note, anchor))
     for g in verdict.get("gate", []):
         ratio = g.get("largest_ratio")
+        if ratio is not None and g.get("work_ratio") is not None:
+            ratio = max(ratio, g["work_ratio"])
         why = "; ".join(g.get("inputs_changed", []) + g.get("structure", []))
         moved = ", ".join(f"{m['observable']} {fmt(m['ratio'])}×" for m in g.get("moved", []))
-        note = "against its golden; error = largest change / its gate tolerance" + (f"; moved: {moved}" if moved else "") \
-            + (f"; {why}" if why else "")
+        work = ", ".join(f"{w['counter']} {100 * w['relative']:+.2g} %" for w in g.get("work", [])
+                         if w["new"] != w["golden"]) or ("as blessed" if g.get("work") else "")
+        more = ", ".join(f"{w['counter']} {w['golden']} → {w['new']}" for w in g.get("work", []) if w["grew"])
+        note = ("against its golden; error = the larger of largest change / its gate tolerance and "
+                "work growth / its limit" + (f"; moved: {moved}" if moved else "")
+                + (f"; more work: {more}" if more else "") + (f"; work {work}" if work else "")
+                + (f"; {why}" if why else ""))
         rows.append(VerdictRow("gate", g["case"], g["engine"], "golden", ratio, 1.0,
                                1.0 / ratio if ratio else math.inf, bool(g.get("unchanged")), note, g["case"]))
     for p in verdict.get("pinocchio", []):

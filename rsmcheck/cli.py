@@ -224,7 +224,8 @@ def _cmd_gate(args: argparse.Namespace) -> int:
         for r in results:
             head = f"{r.case} / {r.engine}: "
             if r.unchanged:
-                print(head + f"unchanged (largest change {r.largest_ratio:.2g} × its gate tolerance)")
+                print(head + f"unchanged (largest change {r.largest_ratio:.2g} × its gate tolerance; "
+                      f"{r.work_summary()})")
                 continue
             print(head + ("INPUTS CHANGED" if r.inputs_changed else "MOVED"))
             for line in r.inputs_changed + r.structure:
@@ -232,6 +233,9 @@ def _cmd_gate(args: argparse.Namespace) -> int:
             for m in r.moved:
                 print(f"    {m.observable:20s} changed by {m.change:.3e} > gate tolerance {m.tolerance:.3e} "
                       f"({m.ratio:.3g} ×), first at t = {m.first_time:.4g} s, worst component {m.component}")
+            for w in r.more_work:
+                print(f"    more work: {w.describe()} > limit {w.limit} (golden + {gate.WORK_TOL:.0%} + "
+                      f"{gate.WORK_SLACK})")
         moved = sum(not r.unchanged for r in results)
         print(f"{len(results) - moved} of {len(results)} runs unchanged"
               + (f"; {moved} moved: if the change is intended, rsmcheck bless CASE --reason TEXT" if moved else ""))

@@ -22,6 +22,10 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   second lower bound of the tolerance.
 * A run moved when any observable differs from the golden by more than its gate tolerance
   at any stored sample, when the events or phases differ, or when its time grid differs.
+* A run also moved when it did more work than its golden: a counter of its solver (the
+  reference's attempted steps, Exudyn's Newton iterations, …: `WORK_COUNTERS`) above the
+  golden's by more than `WORK_TOL` and `WORK_SLACK`.  Work is counted, never timed: the
+  counts of a run are the same on every run of the same code, its wall time is not.
   A changed case file or parameter set is reported as such (the run then has no golden to
   be compared with, and is "inputs changed", exit 1 until blessed).
 """
@@ -68,6 +72,18 @@ ABS_FLOOR = 1e-14
 #: two events are the same when kind and identity (`Event.identity`) agree and times
 #: within this [s]
 EVENT_TIME_TOL = 1e-9
+#: the work of a run, from the counters in its solver settings (`EngineRun.solver`): per
+#: engine, a label and the counters summed into it
+WORK_COUNTERS = {
+    "reference": (("attempted steps", ("steps", "rejected_steps")), ("Jacobians", ("jacobians",))),
+    "exudyn": (("steps", ("steps",)), ("Newton iterations", ("newton_iterations",)), ("Jacobians", ("jacobians",))),
+}
+#: a counter may exceed its golden's by WORK_TOL of it plus WORK_SLACK: 4 × the largest spread
+#: that round-off causes (Exudyn's Newton iterations in p1_transport, +1.25 % under the mass
+#: perturbation; the reference's attempted steps 0.7 % under the step perturbation), and
+#: 3 × the ±1 by which a count of a few Jacobians moves (docs/gate.md, "Work")
+WORK_TOL = 0.05
+WORK_SLACK = 3
 _TOL = "gate_tol."
 _DELTA = "gate_delta."
 _DELTA_STEP = "gate_delta_step."
@@ -100,6 +116,44 @@ class Moved:
         return self.change / self.tolerance if self.tolerance > 0 else float("inf")
 
 
+@dataclass(frozen=True)
+class WorkChange:
+    """One work counter of one run against its golden's."""
+
+    counter: str  # its label in `WORK_COUNTERS`
+    golden: int
+    new: int
+
+    @property
+    def limit(self) -> int:
+        """The most the gate accepts: golden × (1 + WORK_TOL) + WORK_SLACK."""
+        return int(self.golden * (1.0 + WORK_TOL)) + WORK_SLACK
+
+    @property
+    def grew(self) -> bool:
+        return self.new > self.limit
+
+    @property
+    def relative(self) -> float:
+        """(new − golden) / golden (0 when both are 0)."""
+        if self.golden == 0:
+            return 0.0 if self.new == 0 else float("inf")
+        return (self.new - self.golden) / self.golden
+
+    @property
+    def ratio(self) -> float:
+        """The growth over the growth the gate accepts (> 1: more work; 0 for less work)."""
+        return max(0, self.new - self.golden) / (self.limit - self.golden)
+
+    def describe(self) -> str:
+        return f"{self.counter} {_count(self.golden)} → {_count(self.new)} ({self.relative:+.2%})"
+
+
+def _count(n: int) -> str:
+    """An integer with thin groups of three digits (108 789)."""
+    return f"{n:,}".replace(",", " ")
+
+
 @dataclass
 class GateResult:
     """The gate's verdict on one (case, engine)."""
@@ -110,16 +164,40 @@ class GateResult:
     moved: list[Moved] = field(default_factory=list)
     structure: list[str] = field(default_factory=list)  # time grid, events, phases
     largest_ratio: float = 0.0  # max change / tolerance over all observables
+    work: list[WorkChange] = field(default_factory=list)  # every work counter both runs have
+
+    @property
+    def more_work(self) -> list[WorkChange]:
+        """The work counters above their limit."""
+        return [w for w in self.work if w.grew]
+
+    @property
+    def work_ratio(self) -> float:
+        """The largest growth of a work counter over the growth the gate accepts."""
+        return max((w.ratio for w in self.work), default=0.0)
 
     @property
     def unchanged(self) -> bool:
-        return not (self.inputs_changed or self.moved or self.structure)
+        return not (self.inputs_changed or self.moved or self.structure or self.more_work)
+
+    def work_summary(self) -> str:
+        """A few words: which work counters changed against the golden, by how much."""
+        if not self.work:
+            return "no work counters in the golden"
+        changed = [w for w in self.work if w.new != w.golden]
+        if not changed:
+            return "work as blessed"
+        return ("work " + ", ".join(f"{w.counter} {100 * w.relative:+.2g} %" for w in changed)
+                + f" (limit +{WORK_TOL:.0%} + {WORK_SLACK})")
 
     def as_dict(self) -> dict[str, Any]:
         return {"case": self.case, "engine": self.engine, "unchanged": self.unchanged,
                 "inputs_changed": self.inputs_changed, "structure": self.structure,
                 "largest_ratio": self.largest_ratio,
-                "moved": [dataclasses.asdict(m) for m in self.moved]}
+                "moved": [dataclasses.asdict(m) for m in self.moved],
+                "work": [{**dataclasses.asdict(w), "limit": w.limit, "relative": w.relative, "grew": w.grew}
+                         for w in self.work],
+                "work_ratio": self.work_ratio}
 
 
 # ---------------------------------------------------------------------------------------
@@ -267,9 +345,20 @@ def _events(run: EngineRun) -> list[tuple[str, str, float]]:
     return [(e.kind, e.identity, e.time) for e in run.events]
 
 
+def work_changes(run: EngineRun, golden_run: EngineRun) -> list[WorkChange]:
+    """Each work counter of `WORK_COUNTERS` that both runs' solver settings hold (a golden
+    blessed before a counter existed is not compared on it)."""
+    out = []
+    for label, keys in WORK_COUNTERS.get(run.engine, ()):
+        if all(k in run.solver and k in golden_run.solver for k in keys):
+            out.append(WorkChange(label, sum(int(golden_run.solver[k]) for k in keys),
+                                  sum(int(run.solver[k]) for k in keys)))
+    return out
+
+
 def compare_with_golden(case, run: EngineRun, golden: Golden) -> GateResult:
     """The gate's verdict on `run` (of `case`'s short variant) against `golden`."""
-    res = GateResult(case.name, run.engine)
+    res = GateResult(case.name, run.engine, work=work_changes(run, golden.run))
     inputs = case_inputs_hash(case)
     if golden.attrs.get("case_inputs_hash") != inputs:
         res.inputs_changed.append(f"case file {case.path} changed since the golden was blessed "
@@ -335,6 +424,10 @@ def summarize_change(old: Golden | None, new_run: EngineRun, case) -> list[str]:
     for m in res.moved:
         lines.append(f"{m.observable}: changed by {m.change:.3e} (gate tolerance {m.tolerance:.3e}; "
                      f"first at t = {m.first_time:.4g} s)")
+    # the work, where it moved by more than the gate accepts either way (less work is
+    # recorded too: the next gate compares with it)
+    lines += [f"work: {w.describe()}" for w in res.work
+              if w.grew or w.new < w.golden - (w.limit - w.golden)]
     if not lines:
         lines.append(f"unchanged (largest change {res.largest_ratio:.2g} × its gate tolerance)")
     return lines

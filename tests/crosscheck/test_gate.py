@@ -25,7 +25,8 @@ def test_run_matches_its_golden(case_name, engine, run_pool):
     res = compare_with_golden(case, run_pool.get(case_name, engine), golden)
     lines = res.inputs_changed + res.structure + [
         f"{m.observable}: changed by {m.change:.3e} > gate tolerance {m.tolerance:.3e} ({m.ratio:.3g} ×), "
-        f"first at t = {m.first_time:.4g} s" for m in res.moved]
+        f"first at t = {m.first_time:.4g} s" for m in res.moved] + [
+        f"more work: {w.describe()} > limit {w.limit}" for w in res.more_work]
     assert res.unchanged, (f"{case_name} / {engine} moved from its golden "
                            f"({golden.attrs.get('blessed_utc')}, {golden.attrs.get('reason')!r}): "
                            + "; ".join(lines) + ". If intended: rsmcheck bless "

@@ -19,6 +19,9 @@ from rsmcheck.orchestration.gate import (
     PERTURBATION,
     STEP_FACTOR,
     STEP_PERTURBATION,
+    WORK_SLACK,
+    WORK_TOL,
+    WorkChange,
     compare_with_golden,
     golden_path,
     kept_samples,
@@ -26,6 +29,7 @@ from rsmcheck.orchestration.gate import (
     perturbed_case,
     read_golden,
     step_perturbed_case,
+    summarize_change,
     write_golden,
 )
 from rsmcheck.runner import run
@@ -158,6 +162,47 @@ def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
         "event 'capture' at 0.5 s: 'arm=2 impact_loss_J gap_m' → 'arm=1 impact_loss_J gap_m'"]
 
 
+def test_work_limit_counts_and_small_counts():
+    assert WorkChange("steps", 1000, 1000).limit == 1000 + int(1000 * WORK_TOL) + WORK_SLACK
+    assert not WorkChange("steps", 100_000, 105_000).grew and WorkChange("steps", 100_000, 105_004).grew
+    # a few Jacobians may move by the slack, not by a percentage of a handful
+    assert not WorkChange("Jacobians", 6, 6 + WORK_SLACK).grew and WorkChange("Jacobians", 6, 7 + WORK_SLACK).grew
+    assert WorkChange("Jacobians", 0, 0).relative == 0.0 and WorkChange("Jacobians", 0, 4).grew
+    w = WorkChange("Newton iterations", 177_497, 200_000)
+    assert w.describe() == "Newton iterations 177 497 → 200 000 (+12.68%)"
+    assert w.ratio == pytest.approx((200_000 - 177_497) / (w.limit - 177_497))
+    assert WorkChange("steps", 1000, 10).ratio == 0.0  # less work is not a growth
+
+
+def test_the_gate_sees_more_work_and_records_less(tiny, tiny_runs, tmp_path):
+    case, _ = tiny
+    nominal, perturbed = tiny_runs
+    tol, delta, _ = measured_tolerances(nominal, perturbed)
+    g = read_golden(write_golden(tmp_path / "g.h5", case, nominal, tol, delta, "test"), "reference")
+    res = compare_with_golden(case, nominal, g)
+    assert [w.counter for w in res.work] == ["attempted steps", "Jacobians"]
+    assert all(w.relative == 0.0 for w in res.work) and res.unchanged
+    attempted = nominal.solver["steps"] + nominal.solver["rejected_steps"]
+
+    def with_steps(n):
+        return dataclasses.replace(nominal, solver={**nominal.solver, "steps": n - nominal.solver["rejected_steps"]})
+
+    # the same trajectories with more steps than the limit: moved, on the work alone
+    limit = WorkChange("attempted steps", attempted, attempted).limit
+    assert compare_with_golden(case, with_steps(limit), g).unchanged
+    res = compare_with_golden(case, with_steps(limit + 1), g)
+    assert not res.unchanged and not res.moved and [w.counter for w in res.more_work] == ["attempted steps"]
+    assert res.work_ratio > 1.0 and res.as_dict()["work"][0]["grew"]
+    # half the work passes, and a bless records it in the changelog
+    half = with_steps(attempted // 2)
+    assert compare_with_golden(case, half, g).unchanged
+    assert summarize_change(g, half, case) == [
+        "work: " + WorkChange("attempted steps", attempted, attempted // 2).describe()]
+    # a golden without the counter is not compared on it
+    old = dataclasses.replace(g, run=dataclasses.replace(g.run, solver={}))
+    assert compare_with_golden(case, with_steps(10 * attempted), old).work == []
+
+
 def test_bad_goldens_are_input_errors(tiny, tiny_runs, tmp_path):
     from rsmcheck.errors import InputError
 
@@ -198,6 +243,16 @@ def test_cli_bless_gate_unchanged_moved_and_bad_input(tiny, tmp_path, capsys):
     assert main(["gate", *args]) == 1
     out = capsys.readouterr().out
     assert "MOVED" in out and "ee1_pos_B" in out
+
+    # a golden that took a tenth fewer steps: the run does more work than it, exit 1
+    with h5py.File(path, "a") as f:
+        f["reference/ee1_pos_B"][20, 0] -= 1e-6
+        f["reference"].attrs["solver.steps"] = int(0.9 * f["reference"].attrs["solver.steps"])
+    assert main(["gate", *args]) == 1
+    out = capsys.readouterr().out
+    assert "MOVED" in out and "more work: attempted steps" in out and "ee1_pos_B" not in out
+    with h5py.File(path, "a") as f:
+        f["reference/ee1_pos_B"][20, 0] += 1e-6
 
     # re-blessing records what moved in the changelog, newest entry first
     assert main(["bless", *args, "--reason", "restore the tiny golden"]) == 0
