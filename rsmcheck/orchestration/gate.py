@@ -22,12 +22,13 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   second lower bound of the tolerance.
 * A run moved when any observable differs from the golden by more than its gate tolerance
   at any stored sample, when the events or phases differ, or when its time grid differs.
+  A changed case file or parameter set is reported as such (the run then has no golden to
+  be compared with, and is "inputs changed", exit 1 until blessed).
 * A run also moved when it did more work than its golden: a counter of its solver (the
   reference's attempted steps, Exudyn's Newton iterations, …: `WORK_COUNTERS`) above the
   golden's by more than `WORK_TOL` and `WORK_SLACK`.  Work is counted, never timed: the
-  counts of a run are the same on every run of the same code, its wall time is not.
-  A changed case file or parameter set is reported as such (the run then has no golden to
-  be compared with, and is "inputs changed", exit 1 until blessed).
+  counts of the same code repeat exactly on one machine and move by at most ~1 % under
+  round-off, its wall time by several per cent from run to run.
 """
 
 from __future__ import annotations
