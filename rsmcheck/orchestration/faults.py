@@ -300,7 +300,7 @@ def probe(fault: Fault) -> dict:
             g = compare_with_golden(v, r, read_golden(golden_path(v.name, e), e))
             if not g.unchanged:
                 parts = (["inputs changed"] if g.inputs_changed else []) + g.structure[:1] + [m.observable for m in g.moved] \
-                    + [f"more {w.counter}" for w in g.more_work]
+                    + [f"more {w.describe()}" for w in g.more_work]
                 out["gate"].append(f"{v.name}/{e}: " + ", ".join(parts))
         # one engine faulted: the other engine's unfaulted baseline run of the same case
         pair = new if len(new) == 2 else {**read_run(Path(BASELINE_DIR) / f"{v.name}.h5")[0], **new}
