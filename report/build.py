@@ -115,12 +115,11 @@ def verdict_rows(verdict: dict) -> list[VerdictRow]:
             ratio = max(ratio, g["work_ratio"])
         why = "; ".join(g.get("inputs_changed", []) + g.get("structure", []))
         moved = ", ".join(f"{m['observable']} {fmt(m['ratio'])}×" for m in g.get("moved", []))
-        work = ", ".join(f"{w['counter']} {100 * w['relative']:+.2g} %" for w in g.get("work", [])
-                         if w["new"] != w["golden"]) or ("as blessed" if g.get("work") else "")
-        more = ", ".join(f"{w['counter']} {w['golden']} → {w['new']}" for w in g.get("work", []) if w["grew"])
+        more = ", ".join(w["text"] for w in g.get("work", []) if w["grew"])
+        work = g.get("work_summary")  # rsmcheck.orchestration.gate.GateResult.work_summary
         note = ("against its golden; error = the larger of largest change / its gate tolerance and "
                 "work growth / its limit" + (f"; moved: {moved}" if moved else "")
-                + (f"; more work: {more}" if more else "") + (f"; work {work}" if work else "")
+                + (f"; more work: {more}" if more else "") + (f"; {work}" if work else "")
                 + (f"; {why}" if why else ""))
         rows.append(VerdictRow("gate", g["case"], g["engine"], "golden", ratio, 1.0,
                                1.0 / ratio if ratio else math.inf, bool(g.get("unchanged")), note, g["case"]))

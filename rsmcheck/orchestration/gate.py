@@ -150,6 +150,13 @@ class WorkChange:
         return f"{self.counter} {_count(self.golden)} → {_count(self.new)} ({self.relative:+.2%})"
 
 
+def _percent(relative: float) -> str:
+    """A relative change in per cent with two significant digits, never in exponent form
+    (+0.0029, −0.29, +13, +100)."""
+    p = 100.0 * relative
+    return f"{p:+.0f}" if abs(p) >= 10.0 else f"{p:+.2g}"
+
+
 def _count(n: int) -> str:
     """An integer with thin groups of three digits (108 789)."""
     return f"{n:,}".replace(",", " ")
@@ -188,7 +195,7 @@ class GateResult:
         changed = [w for w in self.work if w.new != w.golden]
         if not changed:
             return "work as blessed"
-        return ("work " + ", ".join(f"{w.counter} {100 * w.relative:+.2g} %" for w in changed)
+        return ("work " + ", ".join(f"{w.counter} {_percent(w.relative)} %" for w in changed)
                 + f" (limit +{WORK_TOL:.0%} + {WORK_SLACK})")
 
     def as_dict(self) -> dict[str, Any]:
@@ -196,9 +203,9 @@ class GateResult:
                 "inputs_changed": self.inputs_changed, "structure": self.structure,
                 "largest_ratio": self.largest_ratio,
                 "moved": [dataclasses.asdict(m) for m in self.moved],
-                "work": [{**dataclasses.asdict(w), "limit": w.limit, "relative": w.relative, "grew": w.grew}
-                         for w in self.work],
-                "work_ratio": self.work_ratio}
+                "work": [{**dataclasses.asdict(w), "limit": w.limit, "relative": w.relative, "grew": w.grew,
+                          "text": w.describe()} for w in self.work],
+                "work_ratio": self.work_ratio, "work_summary": self.work_summary()}
 
 
 # ---------------------------------------------------------------------------------------
