@@ -43,7 +43,7 @@ report: venv
 	$(VENV)/bin/rsmcheck report --short --out out/report.html
 
 # The slow tier, not in CI: every case and the whole mission (p1 → p5, chained) at full
-# length in both engines, compared with the cases' tolerances.  80 min on 2 cores (2026-11-26).
+# length in both engines, compared with the cases' tolerances.  80–82 min on 2 cores (2026-11-26).
 fullcheck: venv
 	$(VENV)/bin/rsmcheck report --out out/full/report.html
 
