@@ -40,8 +40,9 @@ from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.orchestration.compare import metric_label
 from rsmcheck.orchestration.gate import golden_path, read_golden
+from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
-from rsmcheck.report.plots import comparison_figure, run_marks
+from rsmcheck.report.plots import comparison_figure, run_marks, simple_figure
 from rsmcheck.store import EngineRun, read_run, write_text
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -327,11 +328,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     cases = case_sections(page, st, checks, gates)
     figures = paper.figures(page, st)
     dep_head, dep_rows = departures_table()
-    bench = _stored_json(data_dir, "bench_*.json")
-    for _, doc in bench:  # where each run's time went, µs per control sample (runs that recorded it)
-        doc["per_sample"] = [{"case": r["case"], "engine": r["engine"], "samples": r["split"]["samples"],
-                              "us": per_sample_us(r["split"])}
-                             for r in doc.get("runs", []) if "error" not in r and r.get("split", {}).get("samples")]
+    bench = speed_sections(page, _stored_json(data_dir, "bench_*.json"))
     html_text = _environment().get_template("page.html.j2").render(
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
         kinds=sorted({r.kind for r in rows}), missions=missions, cases=cases, paper=figures,
@@ -340,6 +337,41 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
         plotly_js=plotly.offline.get_plotlyjs(), short=st.short)
     return write_text(out, html_text)
+
+
+def speed_sections(page: Page, bench: list[tuple[Path, dict]]) -> list[tuple[Path, dict]]:
+    """Each stored bench document with what the page shows beside its runs: the speed targets
+    it measures (target, measured, margin), the × real time of the mission's phases per
+    engine against the phase target, and where each run's time went (µs per control sample)."""
+    for _, doc in bench:
+        doc["targets"] = [r for r in read_targets(doc) if r.measured is not None]
+        doc["phase_fig"] = _phase_speed_figure(page, doc)
+        doc["per_sample"] = [{"case": r["case"], "engine": r["engine"], "samples": r["split"]["samples"],
+                              "us": per_sample_us(r["split"])}
+                             for r in doc.get("runs", []) if "error" not in r and r.get("split", {}).get("samples")]
+    return bench
+
+
+def _phase_speed_figure(page: Page, doc: dict) -> str:
+    """Bars of × real time per phase of the full mission, one colour per engine, log axis,
+    with the phase target as a dashed line; '' when the document has no full mission (the
+    target is about the full length; a short mission's phases stay in the table)."""
+    runs = [r for r in doc.get("runs", []) if r.get("phases") and r.get("variant") == "full" and "error" not in r]
+    if not runs:
+        return ""
+    bound = next(t.bound for t in TARGETS if t.key == "reference_phases")
+    traces = [{"type": "bar", "name": r["engine"],
+               "x": [p["phase"] for p in r["phases"]],
+               "y": [p["sim_s"] / p["wall_s"] if p.get("wall_s") else None for p in r["phases"]],
+               "marker": {"color": "#1f77b4" if r["engine"] == "reference" else "#ff7f0e"}} for r in runs]
+    phases = [p["phase"] for p in runs[0]["phases"]]
+    traces.append({"type": "scatter", "mode": "lines", "name": f"target ≥ {bound:g} × real time",
+                   "x": [phases[0], phases[-1]], "y": [bound, bound],
+                   "line": {"color": "#b00", "dash": "dash", "width": 1.2}})
+    fig = simple_figure("× real time of each mission phase (simulated s per wall s)", traces, xlabel="phase",
+                        ylabel="× real time", height=300, barmode="group", hovermode="closest")
+    fig["layout"]["yaxis"]["type"] = "log"
+    return page.figure(fig)
 
 
 def _studies(data_dir: Path) -> dict[str, list]:

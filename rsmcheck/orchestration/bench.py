@@ -24,7 +24,9 @@ real time), peak memory; a run that fails is reported with its error and the oth
 * `pinocchio_aba` — one Pinocchio ABA call on the 10-coordinate rigid open chain
   (base + arm 1), from Python: the scale of a compiled rigid-body step.
 
-Ratios are only meaningful within one run of this command (shared, noisy machines).
+Last, the speed targets the document measures (rsmcheck.orchestration.targets: the full
+mission's wall time per engine, its slowest phase, the rigid RHS in ABA calls) with their
+margins.  Ratios are only meaningful within one run of this command (shared, noisy machines).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Any, Sequence
 
 from rsmcheck.cases import Case, list_cases, load_case
+from rsmcheck.orchestration.targets import read_targets, targets_table
 from rsmcheck.params import Params
 from rsmcheck.runner import SPLIT
 from rsmcheck.store import dumps_json, git_commit, output_file, write_json
@@ -173,7 +176,7 @@ def table(doc: dict) -> str:
                      f"({rhs.get('pinocchio_nv', '?')} dof open chain)"
                      + (f" — rigid reference compiled / ABA = {rhs['reference_rigid_compiled'] / rhs['pinocchio_aba']:.1f}"
                         if math.isfinite(rhs.get("pinocchio_aba", math.nan)) else f" — {rhs.get('pinocchio_error')}"))
-    for part in (phase_table(doc["runs"], engines), split_table(doc["runs"])):
+    for part in (phase_table(doc["runs"], engines), split_table(doc["runs"]), targets_table(read_targets(doc))):
         if part:
             lines += ["", part]
     failed = [r for r in doc["runs"] if "error" in r]

@@ -80,9 +80,13 @@ def test_paper_figures_are_drawn_from_the_runs(rendered):
     assert "no run of p1_transport is stored" in page
 
 
+def _figures(page: str) -> list[dict]:
+    return json.loads(html.unescape(re.search(r'<script id="figures" type="application/json">(.*?)</script>',
+                                              page, re.S).group(1)))
+
+
 def test_every_figure_has_its_data_and_the_page_stays_small(rendered):
-    figures = json.loads(html.unescape(re.search(r'<script id="figures" type="application/json">(.*?)</script>',
-                                                 rendered.html, re.S).group(1)))
+    figures = _figures(rendered.html)
     divs = re.findall(r"data-fig='(\d+)'", rendered.html)
     assert sorted(int(d) for d in divs) == list(range(len(figures)))
     assert f'data-figures="{len(figures)}"' in rendered.html
@@ -142,3 +146,32 @@ def test_stored_bench_shows_the_mission_phases(rendered, tmp_path):
     row = page[page.index('<td class="l">p2_capture_regrasp</td>'):].split("</tr>")[0]
     assert '<td class="l">full</td><td class="l">reference</td>' in row
     assert [cell.split("<")[0] for cell in row.split("<td>")[1:]] == ["40", "10", "4"]
+
+
+def test_stored_bench_shows_the_speed_targets_and_the_phases_against_theirs(rendered, tmp_path):
+    """A full mission in a bench document gets the targets it measures with their margins
+    (a miss shown as one) and a bar chart of the phases' × real time with the 20× line; a
+    short bench gets neither the mission targets nor the chart."""
+    phases = [{"phase": "p1_transport", "sim_s": 60.0, "wall_s": 30.0},
+              {"phase": "p2_capture_regrasp", "sim_s": 40.0, "wall_s": 1.0}]
+    bench = {"command": "rsmcheck bench --full", "commit": "abc", "utc": "now", "engines": ["reference", "exudyn"],
+             "runs": [{"case": "mission", "engine": e, "variant": "full", "wall_s": w, "sim_s": 100.0,
+                       "peak_mb": 1.0, "phases": phases} for e, w in (("reference", 240.0), ("exudyn", 600.0))],
+             "rhs_us": {"reference_compiled": 10.0, "reference_states": 89, "reference_rigid_compiled": 5.0,
+                        "pinocchio_aba": 2.0}}
+    (tmp_path / "bench_full.json").write_text(json.dumps(bench))
+    short = dict(bench, command="rsmcheck bench", runs=[dict(r, variant="short") for r in bench["runs"]])
+    (tmp_path / "bench_short.json").write_text(json.dumps(short))
+    page = render(rendered.folder, tmp_path / "page.html", ["free_drift"], data_dir=tmp_path).read_text()
+    assert page.count('<td class="l">reference: full mission</td>') == 1
+    assert page.count('<td class="l">reference rigid RHS / Pinocchio ABA</td>') == 2
+    row = page[page.index('<td class="l">reference: full mission</td>'):].split("</tr>")[0]
+    assert ">240<" in row and ">0.5<" in row and '<span class="fail">no</span>' in row
+    exu = page[page.index('<td class="l">Exudyn: full mission</td>'):].split("</tr>")[0]
+    assert ">2<" in exu and '<span class="pass">yes</span>' in exu
+    slowest = page[page.index('<td class="l">reference: each mission phase</td>'):].split("</tr>")[0]
+    assert ">2<" in slowest and "slowest p1_transport" in slowest
+    bars = [f for f in _figures(page) if any(t.get("type") == "bar" for t in f["data"])]
+    assert len(bars) == 1 and bars[0]["layout"]["yaxis"]["type"] == "log"
+    assert [t["y"] for t in bars[0]["data"] if t["type"] == "bar"] == [[2.0, 40.0], [2.0, 40.0]]
+    assert [t["y"] for t in bars[0]["data"] if t["type"] == "scatter"] == [[20.0, 20.0]]

@@ -1,0 +1,117 @@
+"""The suite's speed targets, read off one `rsmcheck bench` document.
+
+The targets (README, "Speed"), each on the 2-core machine and from one run of the bench, so
+that the engines and the right-hand sides are timed on the same machine at the same time:
+
+* the reference flies the full mission (p1 → p5 chained) in ≤ 120 s of wall time;
+* every phase of that flight runs at ≥ 20 × real time (the slowest phase is the reading);
+* Exudyn flies the full mission in ≤ 20 min;
+* one compiled right-hand side of the rigid reference (closed chain) costs ≤ 3 Pinocchio ABA
+  calls (`rhs_us`, rsmcheck.orchestration.bench).
+
+`make test` ≤ 12 min on a fresh clone is the fifth; CI measures it, the bench does not.
+
+A reading's margin is the suite's usual one, ≥ 1 when the target is met: bound / measured
+for an upper bound, measured / bound for a lower one; 0.13 says "7.6 times too slow".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+
+@dataclass(frozen=True)
+class SpeedTarget:
+    """One target: `measured ≤ bound` (`upper`) or `measured ≥ bound`, in `unit`; `read`
+    takes a bench document to (measured or None, which run it came from)."""
+
+    key: str
+    text: str
+    bound: float
+    unit: str
+    upper: bool
+    read: Callable[[dict], tuple[float | None, str]]
+
+
+@dataclass(frozen=True)
+class TargetReading:
+    """A target and what one bench document measured for it (None: no run measured it)."""
+
+    target: SpeedTarget
+    measured: float | None
+    detail: str = ""
+
+    @property
+    def margin(self) -> float | None:
+        """≥ 1 when met: bound / measured for an upper bound, measured / bound for a lower one."""
+        if self.measured is None:
+            return None
+        if self.target.upper:
+            return self.target.bound / self.measured if self.measured > 0 else math.inf
+        return self.measured / self.target.bound
+
+    @property
+    def met(self) -> bool | None:
+        return None if self.margin is None else self.margin >= 1.0
+
+
+def _full_mission(doc: dict, engine: str) -> dict | None:
+    """The document's full-length mission run of `engine`, if it has one that did not fail."""
+    return next((r for r in doc.get("runs", []) if r.get("case") == "mission" and r.get("variant") == "full"
+                 and r.get("engine") == engine and "error" not in r and r.get("wall_s")), None)
+
+
+def _mission_wall(engine: str) -> Callable[[dict], tuple[float | None, str]]:
+    def read(doc: dict) -> tuple[float | None, str]:
+        run = _full_mission(doc, engine)
+        if run is None:
+            return None, ""
+        return float(run["wall_s"]), f"{run['sim_s']:.0f} s of flight in {run['wall_s']:.1f} s"
+    return read
+
+
+def _slowest_phase(doc: dict) -> tuple[float | None, str]:
+    run = _full_mission(doc, "reference")
+    phases = [p for p in (run or {}).get("phases") or [] if p.get("wall_s")]
+    if not phases:
+        return None, ""
+    speed = {p["phase"]: p["sim_s"] / p["wall_s"] for p in phases}
+    slowest = min(speed, key=speed.get)
+    return speed[slowest], "slowest " + slowest + "; " + ", ".join(f"{p} {s:.1f}" for p, s in speed.items())
+
+
+def _rigid_rhs(doc: dict) -> tuple[float | None, str]:
+    rhs = doc.get("rhs_us") or {}
+    ref, aba = rhs.get("reference_rigid_compiled"), rhs.get("pinocchio_aba")
+    if not (ref and aba and math.isfinite(ref) and math.isfinite(aba)):
+        return None, ""
+    return ref / aba, f"{ref:.1f} µs against {aba:.1f} µs"
+
+
+TARGETS = (
+    SpeedTarget("reference_mission", "reference: full mission", 120.0, "s", True, _mission_wall("reference")),
+    SpeedTarget("reference_phases", "reference: each mission phase", 20.0, "× real time", False, _slowest_phase),
+    SpeedTarget("exudyn_mission", "Exudyn: full mission", 1200.0, "s", True, _mission_wall("exudyn")),
+    SpeedTarget("rigid_rhs", "reference rigid RHS / Pinocchio ABA", 3.0, "ABA calls", True, _rigid_rhs),
+)
+
+
+def read_targets(doc: dict[str, Any]) -> list[TargetReading]:
+    """Each target with what `doc` (a bench document) measured for it."""
+    return [TargetReading(t, *t.read(doc)) for t in TARGETS]
+
+
+def targets_table(readings: Sequence[TargetReading]) -> str:
+    """The readings that were measured, for people: target, measured, margin, met."""
+    rows = [r for r in readings if r.measured is not None]
+    if not rows:
+        return ""
+    head = f"{'speed target':50s} {'measured':>12s} {'margin':>8s}  met"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        bound = f"{'≤' if r.target.upper else '≥'} {r.target.bound:g} {r.target.unit}"
+        lines.append(f"{r.target.text + ' ' + bound:50s} {r.measured:12.4g} {r.margin:8.3f}  "
+                     f"{'yes' if r.met else 'no'}  ({r.detail})")
+    return "\n".join(lines)

@@ -1,0 +1,60 @@
+"""rsmcheck.orchestration.targets: the speed targets read off a bench document."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rsmcheck.orchestration.targets import TARGETS, read_targets, targets_table
+
+
+def _mission(engine, wall, phases=(), variant="full", **extra):
+    return {"case": "mission", "engine": engine, "variant": variant, "wall_s": wall, "sim_s": 5920.0,
+            "peak_mb": 1.0, "phases": [{"phase": p, "sim_s": s, "wall_s": w} for p, s, w in phases], **extra}
+
+
+def _doc(*runs, ref=5.0, aba=2.0):
+    return {"runs": list(runs), "rhs_us": {"reference_rigid_compiled": ref, "pinocchio_aba": aba}}
+
+
+def test_readings_and_margins():
+    """Upper bounds: margin bound/measured; lower bounds: measured/bound; the slowest phase is
+    the phase target's reading."""
+    doc = _doc(_mission("reference", 240.0, [("p1", 1200.0, 100.0), ("p2", 380.0, 10.0)]),
+               _mission("exudyn", 600.0), ref=5.0, aba=2.0)
+    r = {x.target.key: x for x in read_targets(doc)}
+    assert r["reference_mission"].measured == 240.0 and r["reference_mission"].margin == pytest.approx(0.5)
+    assert not r["reference_mission"].met
+    assert r["reference_phases"].measured == pytest.approx(12.0) and "slowest p1" in r["reference_phases"].detail
+    assert r["reference_phases"].margin == pytest.approx(0.6) and not r["reference_phases"].met
+    assert r["exudyn_mission"].margin == pytest.approx(2.0) and r["exudyn_mission"].met
+    assert r["rigid_rhs"].measured == pytest.approx(2.5) and r["rigid_rhs"].met
+
+
+def test_a_bound_met_exactly_is_met_and_a_faster_run_has_a_larger_margin():
+    at = {x.target.key: x for x in read_targets(_doc(_mission("reference", 120.0), ref=6.0, aba=2.0))}
+    assert at["reference_mission"].met and at["rigid_rhs"].met and at["rigid_rhs"].margin == pytest.approx(1.0)
+    fast = {x.target.key: x for x in read_targets(_doc(_mission("reference", 60.0)))}
+    assert fast["reference_mission"].margin == pytest.approx(2.0)
+
+
+def test_what_a_document_does_not_measure_is_not_read():
+    """Short runs, failed runs and a missing Pinocchio time measure nothing: None, not a
+    pass, and no row in the table."""
+    doc = {"runs": [_mission("reference", 30.0, variant="short"),
+                    _mission("exudyn", None, error="boom")],
+           "rhs_us": {"reference_rigid_compiled": 5.0, "pinocchio_aba": math.nan}}
+    readings = read_targets(doc)
+    assert [x.measured for x in readings] == [None] * len(TARGETS)
+    assert all(x.met is None and x.margin is None for x in readings)
+    assert targets_table(readings) == ""
+
+
+def test_table_names_each_measured_target_with_its_verdict():
+    doc = _doc(_mission("reference", 240.0, [("p1", 1200.0, 100.0)]))
+    lines = targets_table(read_targets(doc)).splitlines()
+    assert len(lines) == 2 + 3  # header, rule, reference mission, its phases, the RHS ratio
+    assert "≤ 120 s" in lines[2] and " no " in lines[2]
+    assert "≥ 20 × real time" in lines[3] and " yes " in lines[4]
+
