@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import pytest
 
 from rsmcheck.orchestration.targets import TARGETS, read_targets, targets_table
+
+DATA = Path(__file__).resolve().parents[3] / "docs" / "data"
 
 
 def _mission(engine, wall, phases=(), variant="full", **extra):
@@ -58,3 +62,16 @@ def test_table_names_each_measured_target_with_its_verdict():
     assert "≤ 120 s" in lines[2] and " no " in lines[2]
     assert "≥ 20 × real time" in lines[3] and " yes " in lines[4]
 
+
+def test_readme_speed_table_says_what_the_stored_full_bench_measured():
+    """README's speed table gives, per target, the verdict of the stored full-length bench
+    (docs/data/bench_full.json): a new bench that changes a verdict changes the README."""
+    readings = read_targets(json.loads((DATA / "bench_full.json").read_text()))
+    assert all(x.measured is not None for x in readings)
+    readme = (DATA.parents[1] / "README.md").read_text(encoding="utf-8")
+    speed = readme[readme.index("## Speed"):]
+    for x in readings:
+        row = next((line for line in speed.splitlines() if line.startswith(f"| {x.target.text}")), None)
+        assert row is not None, f"README's speed table has no row '{x.target.text}'"
+        verdict = row.rstrip(" |").rsplit("|", 1)[-1].strip()
+        assert verdict == ("met" if x.met else "not met"), (row, x.margin)
