@@ -20,6 +20,8 @@ The model and its reasons: `build.py` and docs/exudyn.md.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from exudyn_model import links
@@ -37,6 +39,10 @@ from rsmcheck.store import package_versions
 #: Default solver settings (convergence study in docs/exudyn.md).
 SUBSTEPS_DEFAULT = 2  # generalized-α steps per 1 ms control period
 SPECTRAL_RADIUS_DEFAULT = 0.6  # docs/exudyn.md §4: ≤ 0.6 keeps switched multipliers clean
+#: seconds of flight between the Newton Jacobians of the continuous stepping (docs/exudyn.md
+#: §4, "The Jacobian's age"): modified Newton keeps a Jacobian until an iteration contracts
+#: by less than ½, long after it has aged enough to cost a second iteration per step
+JACOBIAN_PERIOD_DEFAULT = 0.2
 NEWTON_RTOL_DEFAULT = 1e-8
 #: Absolute Newton tolerance of the flexible model [N], per N of axial stiffness EA: the
 #: ANCF axial forces carry a round-off floor ∝ ε_mach·EA (EA·ε·|q|/le and the cancellation
@@ -83,6 +89,10 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                       False: modified Newton keeps it across steps).  Modified Newton stops
                       just below newton_atol, and the torque of that residual about the origin
                       drifts the angular momentum by ~h·wᵀr per step (docs/exudyn.md §8)
+      jacobian_period a new Newton Jacobian every this many seconds of flight in the
+                      continuous stepping [s] (default 0.2); None or inf: only when
+                      Exudyn's modified Newton asks for one (contractivity > ½).  Without
+                      effect with jacobian_per_step
       start           the end state of a previous run this run continues from
                       (rsmcheck.initial.StartState), None: the case's [initial]
     """
@@ -94,6 +104,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                  quiet_substeps: int | None = None,
                  spectral_radius: float = SPECTRAL_RADIUS_DEFAULT, newton_rtol: float = NEWTON_RTOL_DEFAULT,
                  newton_atol: float | None = None, jacobian_per_step: bool | None = None,
+                 jacobian_period: float | None = JACOBIAN_PERIOD_DEFAULT,
                  field: bool | None = None, restart_on_input_change: bool = True,
                  stepping: str = "continuous", constraints: str | None = None, axial_damping: float = 1.0,
                  restart_threshold: float | None = None, start: StartState | None = None):
@@ -114,6 +125,10 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                                  first_given(newton_atol, given.newton_atol,
                                              NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
         self.jacobian_per_step = bool(first_given(jacobian_per_step, given.jacobian_per_step, False))
+        if jacobian_period is not None and not (isinstance(jacobian_period, (int, float)) and jacobian_period > 0.0):
+            raise ValueError(f"jacobian_period must be a positive number of seconds, inf or None, got {jacobian_period!r}")
+        self.jacobian_period = (None if self.jacobian_per_step or jacobian_period is None or math.isinf(jacobian_period)
+                                else float(jacobian_period))
         self.orbit = bool(case.orbit)
         self.field = self.orbit if field is None else bool(field)
         self.restart_on_input_change = bool(restart_on_input_change)
@@ -185,7 +200,8 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                 "stepping": self.stepping, "constraints": self.constraints,
                 "axial_damping": self.axial_damping,
                 "restart_threshold": self.restart_threshold, "start": self.start_label,
-                **({} if self.quiet_substeps is None else {"quiet_substeps": self.quiet_substeps})}
+                **({} if self.quiet_substeps is None else {"quiet_substeps": self.quiet_substeps}),
+                **({} if self.jacobian_period is None else {"jacobian_period": self.jacobian_period})}
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "exudyn", "numpy")

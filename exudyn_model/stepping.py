@@ -341,12 +341,18 @@ class _Worker:
         self.run: greenlet.greenlet | None = None
         self.ok = True
         self.t_start = 0.0
+        # a new Jacobian every `jacobian_period` s of flight (None: when Exudyn asks for one)
+        self.jacobian_period = engine.jacobian_period
+        self.next_jacobian = math.inf  # the clock time after which the next step gets one
+        self.jacobian_requested = False
         self.mbs.SetPostStepUserFunction(self._post_step)
 
     def _post_step(self, mbs, t: float) -> bool:
         run = self.run
         if run is None or greenlet.getcurrent() is not run or t <= self.t_start + 1e-12:
             return True  # a SolveSteps of the engine's own (a retry, `stepping="period"`)
+        if self.jacobian_requested or t >= self.next_jacobian:
+            self._age_jacobian(t)
         if not self.ends_interval(t):
             return True  # a step inside the interval
         try:
@@ -356,6 +362,20 @@ class _Worker:
         if self.command == "stop":
             self.solver.it.endTime = t  # the run ends here, cleanly, at this sample
         return True
+
+    def _age_jacobian(self, t: float) -> None:
+        """Ask for a new Newton Jacobian at the start of the next step when the last one is
+        `jacobian_period` old, and stop asking after that step (Exudyn's solver reads
+        `modifiedNewtonJacUpdatePerStep` from its own Newton settings at every step).
+        Modified Newton keeps its Jacobian until an iteration contracts by less than ½; one
+        that has aged by the links' turning and bending still contracts by far more than
+        that, but no longer takes a step's residual below the tolerance in one iteration
+        (docs/exudyn.md §4, "The Jacobian's age")."""
+        ask = not self.jacobian_requested
+        self.solver.newton.modifiedNewtonJacUpdatePerStep = ask
+        self.jacobian_requested = ask
+        if ask:
+            self.next_jacobian = t + self.jacobian_period
 
     def ends_interval(self, t: float) -> bool:
         """True for the step (ending at t by Exudyn's clock) that ends the current
@@ -390,6 +410,8 @@ class _Worker:
             solver.it.currentStepSize = self.h
             _allow_step(solver.it, self.h)
             self.t_start = t
+            # a new SolveSteps starts with a new Jacobian
+            self.next_jacobian = math.inf if self.jacobian_period is None else t + self.jacobian_period
             self.ok = True
             self.run = greenlet.greenlet(self._solve)
             _SUSPENDED.worker = self
@@ -409,6 +431,9 @@ class _Worker:
 
     def _ended(self) -> None:
         self.run = None
+        if self.jacobian_requested:  # not carried into another SolveSteps (a retry, a restart)
+            self.solver.newton.modifiedNewtonJacUpdatePerStep = False
+            self.jacobian_requested = False
         if getattr(_SUSPENDED, "worker", None) is self:
             _SUSPENDED.worker = None
 
