@@ -87,7 +87,8 @@ def test_every_phase_has_its_rows_and_the_sequence_replaces_only_its_own():
     # the full flight has its own replaced rows ([compare.PHASE.OBSERVABLE], docs/cases.md §6)
     p4 = load_case("p4_hohmann").variant(False)
     full = {s.observable: s for s in phase_specs(mission, False, p4)}
-    assert full["altitude"].tolerance == 6.0 and "quarter orbit" in full["altitude"].why
+    assert full["altitude"].tolerance == 1.5 and "quarter orbit" in full["altitude"].why
+    assert full["joint_angles"] == next(s for s in p4.compare if s.observable == "joint_angles")  # not replaced
     assert [s.observable for s in phase_specs(mission, False, p4)] == [s.observable for s in p4.compare]
 
 
