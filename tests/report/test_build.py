@@ -150,13 +150,16 @@ def test_stored_bench_shows_the_mission_phases(rendered, tmp_path):
 
 def test_stored_bench_shows_the_speed_targets_and_the_phases_against_theirs(rendered, tmp_path):
     """A full mission in a bench document gets the targets it measures with their margins
-    (a miss shown as one) and a bar chart of the phases' × real time with the 20× line; a
-    short bench gets neither the mission targets nor the chart."""
+    (a miss shown as one), the integrator's share and its margin where the run recorded it,
+    and a bar chart of the phases' × real time with the 20× line; a short bench gets neither
+    the mission targets nor the chart."""
     phases = [{"phase": "p1_transport", "sim_s": 60.0, "wall_s": 30.0},
               {"phase": "p2_capture_regrasp", "sim_s": 40.0, "wall_s": 1.0}]
     bench = {"command": "rsmcheck bench --full", "commit": "abc", "utc": "now", "engines": ["reference", "exudyn"],
              "runs": [{"case": "mission", "engine": e, "variant": "full", "wall_s": w, "sim_s": 100.0,
-                       "peak_mb": 1.0, "phases": phases} for e, w in (("reference", 240.0), ("exudyn", 600.0))],
+                       "peak_mb": 1.0, "phases": phases, **extra}
+                      for e, w, extra in (("reference", 240.0, {"split": {"wall_integrator_s": 200.0}}),
+                                          ("exudyn", 600.0, {}))],
              "rhs_us": {"reference_compiled": 10.0, "reference_states": 89, "reference_rigid_compiled": 5.0,
                         "pinocchio_aba": 2.0}}
     (tmp_path / "bench_full.json").write_text(json.dumps(bench))
@@ -167,8 +170,9 @@ def test_stored_bench_shows_the_speed_targets_and_the_phases_against_theirs(rend
     assert page.count('<td class="l">reference rigid RHS / Pinocchio ABA</td>') == 2
     row = page[page.index('<td class="l">reference: full mission</td>'):].split("</tr>")[0]
     assert ">240<" in row and ">0.5<" in row and '<span class="fail">no</span>' in row
+    assert "<td>200</td><td>0.6</td>" in row  # 120 s against the integrator's 200 s
     exu = page[page.index('<td class="l">Exudyn: full mission</td>'):].split("</tr>")[0]
-    assert ">2<" in exu and '<span class="pass">yes</span>' in exu
+    assert ">2<" in exu and '<span class="pass">yes</span>' in exu and "<td>–</td><td>–</td>" in exu
     slowest = page[page.index('<td class="l">reference: each mission phase</td>'):].split("</tr>")[0]
     assert ">2<" in slowest and "slowest p1_transport" in slowest
     bars = [f for f in _figures(page) if any(t.get("type") == "bar" for t in f["data"])]

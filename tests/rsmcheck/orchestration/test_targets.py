@@ -55,6 +55,25 @@ def test_what_a_document_does_not_measure_is_not_read():
     assert targets_table(readings) == ""
 
 
+def test_the_floor_is_the_integrators_share_of_the_missions_wall():
+    """A wall-time target's floor is the run's `wall_integrator_s` (rsmcheck.runner's split),
+    its margin bound / floor: 120 s against 300 s of integrator is 0.4, whatever the loop
+    around it cost; a run that did not record its split has no floor, and the targets that
+    are not wall times have none."""
+    doc = _doc(_mission("reference", 400.0, [("p1", 1200.0, 100.0)], split={"wall_integrator_s": 300.0}),
+               _mission("exudyn", 1500.0, split={"wall_integrator_s": 1000.0}))
+    r = {x.target.key: x for x in read_targets(doc)}
+    assert r["reference_mission"].floor == 300.0 and r["reference_mission"].floor_margin == pytest.approx(0.4)
+    assert r["reference_mission"].margin == pytest.approx(0.3)
+    assert r["exudyn_mission"].floor_margin == pytest.approx(1.2) and not r["exudyn_mission"].met
+    assert r["reference_phases"].floor is None and r["rigid_rhs"].floor_margin is None
+    assert read_targets(_doc(_mission("reference", 400.0)))[0].floor is None
+    lines = targets_table(read_targets(doc)).splitlines()
+    assert "engine alone" in lines[0]
+    assert lines[2].split()[-1] != "–" and "0.400" in lines[2] and "integrator 300 s" in lines[2]
+    assert "1.200" in lines[4] and "integrator 1000 s" in lines[4]
+
+
 def test_table_names_each_measured_target_with_its_verdict():
     doc = _doc(_mission("reference", 240.0, [("p1", 1200.0, 100.0)]))
     lines = targets_table(read_targets(doc)).splitlines()
@@ -63,15 +82,19 @@ def test_table_names_each_measured_target_with_its_verdict():
     assert "≥ 20 × real time" in lines[3] and " yes " in lines[4]
 
 
-def test_readme_speed_table_says_what_the_stored_full_bench_measured():
-    """README's speed table gives, per target, the verdict of the stored full-length bench
-    (docs/data/bench_full.json): a new bench that changes a verdict changes the README."""
-    readings = read_targets(json.loads((DATA / "bench_full.json").read_text()))
+def test_readme_speed_table_says_what_the_stored_mission_bench_measured():
+    """README's speed table gives, per target, the margin (to 2 digits), the margin of the
+    integrator alone and the verdict of the stored full-length mission bench
+    (docs/data/bench_mission_full.json): a new bench that changes them changes the README."""
+    readings = read_targets(json.loads((DATA / "bench_mission_full.json").read_text()))
     assert all(x.measured is not None for x in readings)
     readme = (DATA.parents[1] / "README.md").read_text(encoding="utf-8")
     speed = readme[readme.index("## Speed"):]
     for x in readings:
         row = next((line for line in speed.splitlines() if line.startswith(f"| {x.target.text}")), None)
         assert row is not None, f"README's speed table has no row '{x.target.text}'"
-        verdict = row.rstrip(" |").rsplit("|", 1)[-1].strip()
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        margin, alone, verdict = cells[-3:]
         assert verdict == ("met" if x.met else "not met"), (row, x.margin)
+        assert float(margin) == pytest.approx(x.margin, abs=0.005), (row, x.margin)
+        assert alone == ("–" if x.floor_margin is None else f"{x.floor_margin:.2f}"), (row, x.floor_margin)
