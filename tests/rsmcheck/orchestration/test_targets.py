@@ -82,11 +82,11 @@ def test_table_names_each_measured_target_with_its_verdict():
     assert "≥ 20 × real time" in lines[3] and " yes " in lines[4]
 
 
-def test_readme_speed_table_says_what_the_stored_mission_bench_measured():
+def test_readme_speed_table_says_what_the_stored_full_bench_measured():
     """README's speed table gives, per target, the margin (to 2 digits), the margin of the
-    integrator alone and the verdict of the stored full-length mission bench
-    (docs/data/bench_mission_full.json): a new bench that changes them changes the README."""
-    readings = read_targets(json.loads((DATA / "bench_mission_full.json").read_text()))
+    integrator alone and the verdict of the stored full-length bench
+    (docs/data/bench_full.json): a new bench that changes them changes the README."""
+    readings = read_targets(json.loads((DATA / "bench_full.json").read_text()))
     assert all(x.measured is not None for x in readings)
     readme = (DATA.parents[1] / "README.md").read_text(encoding="utf-8")
     speed = readme[readme.index("## Speed"):]
