@@ -91,7 +91,9 @@ class LinkItems:
     coords: np.ndarray | None = None  # global ODE2 indices of the beam (or rigid node) coordinates
     pp_joint: int | None = None  # chord prismatic (distal pin on the frame axis)
     pf_joint: int | None = None  # rigid-mode prismatic (P on the frame axis), terminal links
-    p_node: int | None = None
+    p_node: int | None = None  # the massless point P of the PF axis, terminal links
+    p_tie: int | None = None  # P tied to the beam (active in PF)
+    p_park: list[int] = dc_field(default_factory=list)  # P's x, y held at their reference (active in PP)
     basis: str = PP
 
 
@@ -252,8 +254,16 @@ class BuildMixin:
             X[1, 1] += 0.5 * L * m * L - self.I0
             X[0, nq] = X[1, nq + 1] = self.I0
             mh = mbs.AddMarker(MarkerObjectODE2Coordinates(objectNumber=holder))
-            mbs.AddObject(ObjectConnectorCoordinateVector(markerNumbers=[self.ground_coords, mh],
-                                                          scalingMarker0=np.zeros((2, 0)), scalingMarker1=X))
+            # P is needed only while the link is PF: in PP the connector is off (its Jacobian,
+            # evaluated at every Newton residual, was 3.7 % of an Exudyn run) and P is parked
+            # at its reference position by two coordinate constraints (massless, it must be
+            # held by something); `_switch_basis` swaps them (docs/exudyn.md §1)
+            item.p_tie = mbs.AddObject(ObjectConnectorCoordinateVector(
+                markerNumbers=[self.ground_coords, mh], scalingMarker0=np.zeros((2, 0)), scalingMarker1=X,
+                activeConnector=basis == PF))
+            item.p_park = [mbs.AddObject(CoordinateConstraint(
+                markerNumbers=[self.ground_coord, mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=pnode, coordinate=c))],
+                activeConnector=basis == PP)) for c in (0, 1)]
             mpr = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=pnode, coordinate=2))
             mbs.AddObject(CoordinateConstraint(markerNumbers=[self.ground_coord, mpr]))
             mp = mbs.AddMarker(MarkerNodeRigid(nodeNumber=pnode))

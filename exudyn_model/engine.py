@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from exudyn_model import links
-from exudyn_model.build import BuildMixin
+from exudyn_model.build import PP, BuildMixin
 from exudyn_model.field import FieldMixin
 from exudyn_model.observe import ObserveMixin
 from exudyn_model.stepping import SteppingMixin, _Worker
@@ -239,6 +239,10 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         for i in self._position_coordinates():
             q[i] += shift
             v[i] += shift_v
+        for it in self.links:  # a PP link's P stays parked at this model's reference (build.py)
+            if it.p_node is not None and it.basis == PP:
+                ip = self.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
+                q[ip], v[ip] = self.q_ref[ip], 0.0
         sd = self.mbs.systemData
         sd.SetODE2Coordinates(q - self.q_ref)
         sd.SetODE2Coordinates_t(v)

@@ -62,25 +62,45 @@ class SwitchingMixin:
         if it.rigid or it.basis == new:
             it.basis = new
             return {"delta_rad": 0.0, "residual_m": 0.0, "residual_mps": 0.0}
-        q, _ = self._qv()
+        q, v = self._qv()
         qi = q[it.coords]
         R = qi[0:2]
         if new == PP:
             d = qi[-4:-2] - R
         else:
-            d = self.moment @ qi - 0.5 * self.params.link.mass * self.params.link.length * R
+            d = self._first_moment(qi)
         theta_new = math.atan2(d[1], d[0])
         j = self.i_frame[i]
         th_old = q[j]
         delta = math.remainder(theta_new - th_old, 2 * math.pi)
         sd = self.mbs.systemData
-        qc = np.asarray(sd.GetODE2Coordinates())
+        qc, vc = np.asarray(sd.GetODE2Coordinates()), np.asarray(sd.GetODE2Coordinates_t())
         qc[j] += delta
+        # P = R + (L/I_0) ∫ρξ(r − R)dξ tied to the beam in PF, parked at its reference in PP
+        # (build.py): its coordinates are placed where the new constraints hold
+        ip = self.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
+        if new == PF:
+            scale = self.params.link.length / self.I0
+            qc[ip] = R + scale * d - self.q_ref[ip]
+            vc[ip] = v[it.coords][0:2] + scale * self._first_moment(v[it.coords])
+        else:
+            qc[ip] = 0.0
+            vc[ip] = 0.0
         sd.SetODE2Coordinates(qc)
-        self.mbs.SetObjectParameter(it.pp_joint, "activeConnector", new == PP)
-        self.mbs.SetObjectParameter(it.pf_joint, "activeConnector", new == PF)
+        sd.SetODE2Coordinates_t(vc)
+        mbs = self.mbs
+        mbs.SetObjectParameter(it.pp_joint, "activeConnector", new == PP)
+        mbs.SetObjectParameter(it.pf_joint, "activeConnector", new == PF)
+        mbs.SetObjectParameter(it.p_tie, "activeConnector", new == PF)
+        for park in it.p_park:
+            mbs.SetObjectParameter(park, "activeConnector", new == PP)
         it.basis = new
         return {"delta_rad": float(delta), "residual_m": 0.0, "residual_mps": 0.0}
+
+    def _first_moment(self, qi: np.ndarray) -> np.ndarray:
+        """∫ρξ(r − R)dξ of a beam from its coordinates qi (or the same of ṙ from its
+        velocities): the direction of the PF axis (docs/physics.md §2.1) [kg·m²]."""
+        return self.moment @ qi - 0.5 * self.params.link.mass * self.params.link.length * qi[0:2]
 
     def _plastic_impact(self) -> float:
         """Mass-weighted projection of the velocities on the active constraints

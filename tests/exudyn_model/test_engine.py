@@ -93,6 +93,53 @@ def test_pf_frame_is_mass_orthogonal_and_pp_frame_is_the_chord(free_drift):
     assert [it.basis for it in eng.links] == ["PP", "PP", "PP", "PP", "PP", "PF"]
 
 
+def test_the_pf_point_is_tied_to_the_beam_only_while_the_link_is_pf(free_drift):
+    """P, the point that carries a terminal link's PF axis, is tied to the beam only in PF;
+    in PP it is parked at its reference position and the tie is off (build.py), and each
+    basis switch places it where the new constraints hold (switching._switch_basis)."""
+    eng = ExudynEngine(free_drift)
+    it = eng.links[5]
+    ip = eng.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
+    scale = eng.params.link.length / eng.I0
+    active = lambda item: bool(eng.mbs.GetObjectParameter(item, "activeConnector"))  # noqa: E731
+
+    def p_error():
+        """|P − (R + (L/I_0)∫ρξ(r − R)dξ)| and the same for the velocities."""
+        q, v = eng._qv()
+        qi, vi = q[it.coords], v[it.coords]
+        return (np.abs(q[ip] - qi[:2] - scale * eng._first_moment(qi)).max(),
+                np.abs(v[ip] - vi[:2] - scale * eng._first_moment(vi)).max())
+
+    def parked():
+        q, v = eng._qv()
+        return np.abs(q[ip] - eng.q_ref[ip]).max() < 1e-14 and np.abs(v[ip]).max() < 1e-12
+
+    def switch(basis, t):
+        """Switch (as a capture or release does) and fly 50 samples; the state right after
+        the switch is checked before the solver could mend it."""
+        eng._pause()
+        eng._switch_basis(5, basis)
+        eng._plastic_impact()
+        eng._restart()
+        right_after = p_error() if basis == "PF" else parked()
+        for k in range(1, 51):
+            eng.advance(t + k * 1e-3, Inputs())
+        return t + 0.05, right_after
+
+    t, (dq, dv) = switch("PF", 0.0)  # free_drift's arm 2 starts PF: no switch
+    assert it.basis == "PF" and active(it.p_tie) and not any(active(c) for c in it.p_park)
+    assert dq < 1e-12 and dv < 1e-10, (dq, dv)
+    t, was_parked = switch("PP", t)
+    assert not active(it.p_tie) and all(active(c) for c in it.p_park)
+    assert was_parked and parked()
+    assert p_error()[0] > 1e-6  # the beam has moved on: P no longer follows it
+    _, (dq, dv) = switch("PF", t)
+    assert active(it.p_tie) and not any(active(c) for c in it.p_park)
+    assert dq < 1e-12 and dv < 1e-10, (dq, dv)  # placed on the beam by the switch
+    dq, dv = p_error()
+    assert dq < 1e-12 and dv < 1e-10, (dq, dv)  # and kept there by the tie
+
+
 def _runs(case, duration, n_modes, **options):
     from reference_model.engine import ReferenceEngine
 
