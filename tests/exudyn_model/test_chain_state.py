@@ -80,3 +80,10 @@ def test_orbit_placement_shifts_every_position_alike():
     assert np.linalg.norm(b["momentum_I"][:2]) < 1e-12 * np.linalg.norm(a["momentum_I"][:2]) + 1e-12
     # the COM left O during the first 20 ms of the burn (5 µm): the shift is real
     assert np.linalg.norm(a["base_pose_I"][:2] + A @ a["com_pos_B"]) > 1e-6
+    # a PP terminal link's P is not shifted with the rest: it stays parked at the new
+    # model's reference, where its two coordinate constraints hold (exudyn_model/build.py)
+    q, v = second._qv()
+    for it in [it for it in second.links if it.p_node is not None]:
+        assert it.basis == "PP"
+        ip = second.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
+        assert np.array_equal(q[ip], second.q_ref[ip]) and not np.any(v[ip]), it.index
