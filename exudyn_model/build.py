@@ -94,6 +94,7 @@ class LinkItems:
     p_node: int | None = None  # the massless point P of the PF axis, terminal links
     p_tie: int | None = None  # P tied to the beam (active in PF)
     p_park: list[int] = dc_field(default_factory=list)  # P's x, y held at their reference (active in PP)
+    p_coords: np.ndarray | None = None  # global ODE2 indices of P's x, y
     basis: str = PP
 
 
@@ -288,6 +289,8 @@ class BuildMixin:
                 it.coords = idx(it.frame_node) + np.arange(3)
             else:
                 it.coords = np.concatenate([idx(n) + np.arange(4) for n in it.nodes])
+            if it.p_node is not None:
+                it.p_coords = idx(it.p_node) + np.arange(2)
         # the sensors' pairs (`ObserveMixin._sensors`): each joint's parent hub and parent frame
         # (the base's θ for the first joint of an arm), each wrist's terminal distal hub, the
         # end effectors' x, y (the tip nodes of flexible terminal links; rigid: None)

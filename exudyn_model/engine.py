@@ -241,8 +241,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
             v[i] += shift_v
         for it in self.links:  # a PP link's P stays parked at this model's reference (build.py)
             if it.p_node is not None and it.basis == PP:
-                ip = self.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
-                q[ip], v[ip] = self.q_ref[ip], 0.0
+                q[it.p_coords], v[it.p_coords] = self.q_ref[it.p_coords], 0.0
         sd = self.mbs.systemData
         sd.SetODE2Coordinates(q - self.q_ref)
         sd.SetODE2Coordinates_t(v)

@@ -78,7 +78,7 @@ class SwitchingMixin:
         qc[j] += delta
         # P = R + (L/I_0) ∫ρξ(r − R)dξ tied to the beam in PF, parked at its reference in PP
         # (build.py): its coordinates are placed where the new constraints hold
-        ip = self.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
+        ip = it.p_coords
         if new == PF:
             scale = self.params.link.length / self.I0
             qc[ip] = R + scale * d - self.q_ref[ip]
