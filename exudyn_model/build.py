@@ -206,8 +206,9 @@ class BuildMixin:
             self.carrier = mbs.AddObject(ObjectGenericODE2(nodeNumbers=self.field_nodes))
         mbs.Assemble()
         if self.field:
+            # its pre-step function is registered while there is thrust (`_advance`)
             self._thrust_inertia = _ThrustInertia(self.carrier, self.base_node, float(init.base_pose[2]))
-            mbs.SetPreStepUserFunction(self._thrust_inertia)
+        self._pre_step_on = False
 
     def _rigid_link(self, i, pin, th, vel, om, terminal, basis) -> LinkItems:
         mbs, p = self.mbs, self.params
@@ -299,6 +300,13 @@ class BuildMixin:
         self._i_frame_parent = np.array([i_thB, *self.i_frame[:2], i_thB, *self.i_frame[3:5]])
         self._i_wrist_hub = self.i_hub_dist[[2, 5]]
         self._i_ee = None if self.rigid else np.array([self.links[2].coords[-4:-2], self.links[5].coords[-4:-2]])
+        # all of them in one gather per sample (`_sensors`), in this order: base, target,
+        # rotors, proximal hubs, their parents, frames, their parents, wrist hubs (38), then
+        # the end effectors' x, y (flexible links)
+        self._sensor_rows = np.concatenate([self.i_base, self.i_target, self.i_rotor, self.i_hub_prox,
+                                            self._i_hub_parent, self.i_frame, self._i_frame_parent,
+                                            self._i_wrist_hub, [] if self.rigid else self._i_ee.reshape(-1)]
+                                           ).astype(np.int64)
         self.q_ref = np.asarray(mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Reference))
         L = self.params.link.length
         self.first = self.mesh.first_matrix()
@@ -306,7 +314,7 @@ class BuildMixin:
         self.mass_ancf = self.mesh.mass_matrix()
         self.pos_mid = self.mesh.pos_matrix(0.5 * L)
         self._rigid_gauss = links.gauss(8, -0.5 * L, 0.5 * L)  # a rigid link's field points
-        # the tidal field's quadrature on the flexible links (field.tidal_link_forces)
+        # the tidal field's quadrature on the flexible links (field.tidal_carrier_forces)
         self._flex = [i for i, it in enumerate(self.links) if not it.rigid]
         self._flex_coords = np.array([self.links[i].coords for i in self._flex], dtype=np.int64).reshape(
             len(self._flex), self.mesh.nq)
@@ -368,6 +376,12 @@ class BuildMixin:
         self.solver.InitializeSolver(self.mbs, self.settings)
 
     def _qv(self) -> tuple[np.ndarray, np.ndarray]:
+        """Absolute ODE2 coordinates q and velocities q̇ (read-only: between the end of an
+        `_advance` and the next change of the state, `_pause` or `_advance`, the same arrays
+        of that sample are returned: the sensors, the observables and the next held inputs
+        read them without three copies out of Exudyn)."""
+        if self._qv_sample is not None:
+            return self._qv_sample
         sd = self.mbs.systemData
         return np.asarray(sd.GetODE2Coordinates()) + self.q_ref, np.asarray(sd.GetODE2Coordinates_t())
 

@@ -155,6 +155,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.capture_arm = case.capture.arm
         self.capture_point = np.asarray(p.geometry.grasp_T(case.capture.arm), float)
         self._held: tuple | None = None
+        self._qv_sample: tuple[np.ndarray, np.ndarray] | None = None  # `_qv`
         self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0, "newton_retries": 0,
                       "wall_integrator_s": 0.0}  # s waiting on Exudyn's solver (rsmcheck bench)
         self._restart_pending = False
@@ -213,7 +214,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         coordinates, grasp flags, held points, terminal-link bases."""
         q, v = self._qv()
         return {"engine": self.name, "rigid": self.rigid, "n_elements": self.n_elements,
-                "q": q, "v": v, "data": np.asarray(self.mbs.systemData.GetDataCoordinates(), float),
+                "q": q.copy(), "v": v.copy(), "data": np.asarray(self.mbs.systemData.GetDataCoordinates(), float),
                 "grasp_on": self.grasp_on.copy(), "rho_G": self.rho_G.copy(),
                 "basis": [it.basis for it in self.links], "base_pose": q[self.i_base].copy(),
                 "base_rate": v[self.i_base].copy()}

@@ -59,47 +59,69 @@ def _tidal_at(px, py, rx, ry, r2):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def tidal_point_forces(points, masses, r_o, mu):  # pragma: no cover - compiled
-    """m_k Δg(ρ_k) for point masses at `points` (rows) [N]: base and target at their COM."""
+def tidal_carrier_forces(q, v, s, flex_coords, carrier_flex, cols, vals, weights, points, carrier_points, masses,
+                         r_o, mu, out):  # pragma: no cover - compiled
+    """Generalised forces of the tidal field [N] at the positions q + s q̇, written into the
+    carrier's vector `out` (zeroed by the caller; called every control sample: compiled,
+    one call, no temporaries).
+
+    * flexible link i (`flex_coords[i]`: its coordinates in q, `carrier_flex[i]`: their
+      places in `out`): Gauss points r_g = S(ξ_g) q_i, rows 2g (x) and 2g+1 (y) of S given
+      by their non-zero entries (`cols`, `vals`: an ANCF position depends on 4
+      coordinates), forces Σ_g S(ξ_g)ᵀ ρA w_g Δg(r_g) (`weights` = ρA w_g);
+    * point masses k (base and target at their COM: `points[k]` their x, y in q,
+      `carrier_points[k]` in `out`, `masses[k]`): m_k Δg(ρ_k);
+    Δg as in `tidal`, point by point."""
     rx, ry = r_o[0], r_o[1]
     r2 = rx * rx + ry * ry
     scale = mu / (r2 * math.sqrt(r2))
-    out = np.empty(points.shape)
-    for k in range(points.shape[0]):
-        gx, gy = _tidal_at(points[k, 0], points[k, 1], rx, ry, r2)
-        out[k, 0] = masses[k] * scale * gx
-        out[k, 1] = masses[k] * scale * gy
-    return out
-
-
-@njit(cache=True)
-def tidal_link_forces(q_links, cols, vals, weights, r_o, mu):  # pragma: no cover - compiled
-    """Generalised forces of the tidal field on every flexible link, one row per link
-    (`q_links`: the links' coordinates, a row each).  A link's Gauss points are
-    r_g = S(ξ_g) q, rows 2g (x) and 2g+1 (y) of S given by their non-zero entries (`cols`,
-    `vals`: an ANCF position depends on 4 coordinates), and its forces
-    Σ_g S(ξ_g)ᵀ ρA w_g Δg(r_g) (`weights` = ρA w_g), Δg as in `tidal`, point by point
-    (called every control sample: compiled, no temporaries)."""
-    n_links = q_links.shape[0]
     n_g = weights.shape[0]
-    rx, ry = r_o[0], r_o[1]
-    r2 = rx * rx + ry * ry
-    scale = mu / (r2 * math.sqrt(r2))
-    out = np.zeros(q_links.shape)
-    for i in range(n_links):
+    for i in range(flex_coords.shape[0]):
+        ci = flex_coords[i]
+        oi = carrier_flex[i]
         for g in range(n_g):
             px = 0.0
             py = 0.0
             for j in range(cols.shape[1]):
-                px += vals[2 * g, j] * q_links[i, cols[2 * g, j]]
-                py += vals[2 * g + 1, j] * q_links[i, cols[2 * g + 1, j]]
+                kx = ci[cols[2 * g, j]]
+                ky = ci[cols[2 * g + 1, j]]
+                px += vals[2 * g, j] * (q[kx] + s * v[kx])
+                py += vals[2 * g + 1, j] * (q[ky] + s * v[ky])
             gx, gy = _tidal_at(px, py, rx, ry, r2)
             gx *= weights[g] * scale
             gy *= weights[g] * scale
             for j in range(cols.shape[1]):
-                out[i, cols[2 * g, j]] += vals[2 * g, j] * gx
-                out[i, cols[2 * g + 1, j]] += vals[2 * g + 1, j] * gy
-    return out
+                out[oi[cols[2 * g, j]]] += vals[2 * g, j] * gx
+                out[oi[cols[2 * g + 1, j]]] += vals[2 * g + 1, j] * gy
+    for k in range(points.shape[0]):
+        ix, iy = points[k, 0], points[k, 1]
+        gx, gy = _tidal_at(q[ix] + s * v[ix], q[iy] + s * v[iy], rx, ry, r2)
+        out[carrier_points[k, 0]] = masses[k] * scale * gx
+        out[carrier_points[k, 1]] = masses[k] * scale * gy
+
+
+@njit(cache=True, inline="always")
+def _orbit_acc(x, y, ax, ay, mu):  # pragma: no cover - compiled
+    """g(r) + a_thr at r = (x, y), g = −μ r/|r|³ (μ = 0: no gravity)."""
+    r = math.sqrt(x * x + y * y)
+    k = mu / (r * r * r) if mu != 0.0 else 0.0
+    return ax - k * x, ay - k * y
+
+
+@njit(cache=True)
+def orbit_rk4(x, y, vx, vy, ax, ay, mu, h):  # pragma: no cover - compiled
+    """One classical Runge–Kutta step h [s] of r̈ = g(r) + a_thr from r = (x, y),
+    ṙ = (vx, vy), a_thr = (ax, ay) held; returns (x, y, vx, vy) at t + h (on floats:
+    called every control sample)."""
+    a1x, a1y = _orbit_acc(x, y, ax, ay, mu)
+    a2x, a2y = _orbit_acc(x + 0.5 * h * vx, y + 0.5 * h * vy, ax, ay, mu)
+    v2x, v2y = vx + 0.5 * h * a1x, vy + 0.5 * h * a1y
+    a3x, a3y = _orbit_acc(x + 0.5 * h * v2x, y + 0.5 * h * v2y, ax, ay, mu)
+    v3x, v3y = vx + 0.5 * h * a2x, vy + 0.5 * h * a2y
+    a4x, a4y = _orbit_acc(x + h * v3x, y + h * v3y, ax, ay, mu)
+    v4x, v4y = vx + h * a3x, vy + h * a3y
+    return (x + h / 6 * (vx + 2 * v2x + 2 * v3x + v4x), y + h / 6 * (vy + 2 * v2y + 2 * v3y + v4y),
+            vx + h / 6 * (a1x + 2 * a2x + 2 * a3x + a4x), vy + h / 6 * (a1y + 2 * a2y + 2 * a3y + a4y))
 
 
 def tidal_potential(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -121,29 +143,15 @@ class FieldMixin:
 
     def _advance_orbit(self, h: float, a_thr: np.ndarray) -> None:
         """O over one control interval: r̈_O = g(r_O) + a_thr (physics.md §5), classical RK4
-        on plain floats (a_thr, the interval's mean thrust acceleration, held)."""
+        (`orbit_rk4`; a_thr, the interval's mean thrust acceleration, held)."""
         ax, ay = float(a_thr[0]), float(a_thr[1])
         if not self.orbit and ax == 0.0 and ay == 0.0:
             return
         mu = self.params.orbit.mu if self.orbit else 0.0
-
-        def acc(x: float, y: float) -> tuple[float, float]:
-            r = math.sqrt(x * x + y * y)
-            k = mu / (r * r * r) if mu else 0.0
-            return ax - k * x, ay - k * y
-
         (x, y), (vx, vy) = self.r_O.tolist(), self.v_O.tolist()
-        a1 = acc(x, y)
-        a2 = acc(x + 0.5 * h * vx, y + 0.5 * h * vy)
-        v2 = (vx + 0.5 * h * a1[0], vy + 0.5 * h * a1[1])
-        a3 = acc(x + 0.5 * h * v2[0], y + 0.5 * h * v2[1])
-        v3 = (vx + 0.5 * h * a2[0], vy + 0.5 * h * a2[1])
-        a4 = acc(x + h * v3[0], y + h * v3[1])
-        v4 = (vx + h * a3[0], vy + h * a3[1])
-        self.r_O = np.array([x + h / 6 * (vx + 2 * v2[0] + 2 * v3[0] + v4[0]),
-                             y + h / 6 * (vy + 2 * v2[1] + 2 * v3[1] + v4[1])])
-        self.v_O = np.array([vx + h / 6 * (a1[0] + 2 * a2[0] + 2 * a3[0] + a4[0]),
-                             vy + h / 6 * (a1[1] + 2 * a2[1] + 2 * a3[1] + a4[1])])
+        x, y, vx, vy = orbit_rk4(x, y, vx, vy, ax, ay, mu, h)
+        self.r_O = np.array([x, y])
+        self.v_O = np.array([vx, vy])
 
     def _uniform_field_matrix(self, m_base: float) -> np.ndarray:
         """U with U a = generalised forces of a uniform acceleration field a on every mass
@@ -169,15 +177,15 @@ class FieldMixin:
         self._uniform = (m_base, np.vstack(blocks))
         return self._uniform[1]
 
-    def _tidal_forces(self, q, r_O: np.ndarray, m_base: float) -> np.ndarray:
-        """Generalised forces of the exact tidal field at the positions q about the orbit
-        point r_O (zero without an orbit), the base of mass `m_base` [kg], carrier
-        coordinates: base and target at their COM,
-        a flexible link over its Gauss points (r_g = S(ξ_g) q_i, forces Σ_g S(ξ_g)ᵀ ρA w_g
-        Δg_g, `tidal_link_forces`, the same S for every link: one mesh), a rigid link over
-        its own Gauss points with the moment about its centre.  Each part is written into
-        its place of the carrier's vector (`_carrier_points`, `_carrier_flex`,
-        `_carrier_links`; called every control sample)."""
+    def _tidal_forces(self, q, v, s: float, r_O: np.ndarray, m_base: float) -> np.ndarray:
+        """Generalised forces of the exact tidal field at the positions q + s q̇ (`v` = q̇,
+        `s` [s]: the positions s ahead on their tangent; s = 0: at q) about the orbit point
+        r_O (zero without an orbit), the base of mass `m_base` [kg], carrier coordinates:
+        base and target at their COM, a flexible link over its Gauss points
+        (`tidal_carrier_forces`, the same S for every link: one mesh), a rigid link over its
+        own Gauss points with the moment about its centre.  Each part is written into its
+        place of the carrier's vector (`_carrier_points`, `_carrier_flex`, `_carrier_links`;
+        called every control sample)."""
         out = np.zeros(self._n_carrier)
         if not self.orbit:
             return out
@@ -185,14 +193,13 @@ class FieldMixin:
         mu = p.orbit.mu
         r_O = np.asarray(r_O, float)
         cols, vals = self._field_S
-        out[self._carrier_flex] = tidal_link_forces(q[self._flex_coords], cols, vals, self._field_weights, r_O, mu)
-        out[self._carrier_points] = tidal_point_forces(q[self._field_points], np.array([m_base, p.target.mass]),
-                                                       r_O, mu)
+        tidal_carrier_forces(q, v, float(s), self._flex_coords, self._carrier_flex, cols, vals, self._field_weights,
+                             self._field_points, self._carrier_points, np.array([m_base, p.target.mass]), r_O, mu, out)
         xs_rigid, ws_rigid = self._rigid_gauss
         for it in self.links:
             if not it.rigid:
                 continue
-            qi = q[it.coords]
+            qi = q[it.coords] + s * v[it.coords]
             pts = qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])])
             f = p.link.rho_a * ws_rigid[:, None] * tidal(mu, r_O, pts)
             lever = pts - qi[:2]

@@ -61,34 +61,30 @@ class ObserveMixin:
         p = self.params
         return self._mass_base() + p.target.mass + 6 * p.link.mass
 
-    def _section_joint_angles(self, q, v) -> tuple[np.ndarray, np.ndarray]:
-        """ψ_J, ψ̇_J: child's proximal hub minus parent's distal hub (the base for joint 1,
-        `_i_hub_parent`)."""
-        return q[self.i_hub_prox] - q[self._i_hub_parent], v[self.i_hub_prox] - v[self._i_hub_parent]
-
     def _wrist_angles(self, q) -> np.ndarray:
         """ψ_w: θ_T relative to the distal hub of each terminal link."""
         return q[self.i_target[2]] - q[self._i_wrist_hub]
 
     def _sensors(self) -> Sensors:
-        """At every control sample: coordinates gathered by the index arrays of `_index` (a
-        fancy index is already a copy)."""
+        """At every control sample: the coordinates gathered in one index array
+        (`_sensor_rows`, build.py `_index`), the sensors its slices and their differences."""
         q, v = self._qv()
-        thB = q[self.i_base[2]]
-        psi, psid = self._section_joint_angles(q, v)
-        rE, rEd = self._end_effectors(q, v)
+        qs, vs = q[self._sensor_rows], v[self._sensor_rows]
+        if self._i_ee is not None:
+            rE, rEd = qs[38:42].reshape(2, 2), vs[38:42].reshape(2, 2)
+        else:
+            rE, rEd = self._end_effectors(q, v)
         com, m = self._com(q)
-        AB_T = rot(thB).T
-        i_frame, i_parent = self.i_frame, self._i_frame_parent
+        AB_T = rot(qs[2]).T
         return Sensors(
-            time=self.t, base_pose_I=q[self.i_base], base_rate_I=v[self.i_base],
-            joint_angles=psi, joint_rates=psid,
-            joint_frame_angles=q[i_frame] - q[i_parent], joint_frame_rates=v[i_frame] - v[i_parent],
-            wrist_angles=self._wrist_angles(q),
-            motor_angles=q[self.i_rotor], motor_rates=v[self.i_rotor],
+            time=self.t, base_pose_I=qs[0:3], base_rate_I=vs[0:3],
+            joint_angles=qs[12:18] - qs[18:24], joint_rates=vs[12:18] - vs[18:24],
+            joint_frame_angles=qs[24:30] - qs[30:36], joint_frame_rates=vs[24:30] - vs[30:36],
+            wrist_angles=qs[5] - qs[36:38],
+            motor_angles=qs[6:12], motor_rates=vs[6:12],
             ee_pos_I=rE, ee_vel_I=rEd,
-            target_pose_I=q[self.i_target], target_rate_I=v[self.i_target],
-            com_pos_B=AB_T @ (com - q[self.i_base[:2]]), grasp_state=self.grasp_on.copy(),
+            target_pose_I=qs[3:6], target_rate_I=vs[3:6],
+            com_pos_B=AB_T @ (com - qs[0:2]), grasp_state=self.grasp_on.copy(),
             system_mass=m, orbit_r_I=self.r_O.copy(), orbit_v_I=self.v_O.copy())
 
     def _observables(self, inputs: Inputs) -> dict:

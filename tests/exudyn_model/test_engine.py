@@ -60,6 +60,58 @@ def test_initial_state_is_the_shared_one(free_drift, rigid):
         assert np.allclose(s.ee_vel_I[arm - 1], v, atol=1e-13)
 
 
+@pytest.mark.parametrize("rigid", [True, False])
+def test_sensors_read_the_coordinates_they_name(free_drift, rigid):
+    """The sensors are slices of one gather (`_sensor_rows`): at a state where every
+    coordinate and rate differs, each must equal its definition by the index tables of
+    `_index` (ψ_J = proximal hub − parent's distal hub, θ_J = frame − parent frame,
+    ψ_w = θ_T − terminal distal hub, the end effector = the tip node's x, y)."""
+    eng = ExudynEngine(free_drift, rigid=rigid)
+    sd = eng.mbs.systemData
+    rng = np.random.default_rng(7)
+    n = len(eng.q_ref)
+    sd.SetODE2Coordinates(np.asarray(sd.GetODE2Coordinates()) + rng.normal(0.0, 1e-2, n))
+    sd.SetODE2Coordinates_t(rng.normal(0.0, 1.0, n))
+    q, v = eng._qv()
+    s = eng.sensors()
+    parent_hub = np.array([eng.i_base[2], *eng.i_hub_dist[:2], eng.i_base[2], *eng.i_hub_dist[3:5]])
+    parent_frame = np.array([eng.i_base[2], *eng.i_frame[:2], eng.i_base[2], *eng.i_frame[3:5]])
+    expected = {"base_pose_I": q[eng.i_base], "base_rate_I": v[eng.i_base],
+                "target_pose_I": q[eng.i_target], "target_rate_I": v[eng.i_target],
+                "motor_angles": q[eng.i_rotor], "motor_rates": v[eng.i_rotor],
+                "joint_angles": q[eng.i_hub_prox] - q[parent_hub], "joint_rates": v[eng.i_hub_prox] - v[parent_hub],
+                "joint_frame_angles": q[eng.i_frame] - q[parent_frame],
+                "joint_frame_rates": v[eng.i_frame] - v[parent_frame],
+                "wrist_angles": q[eng.i_target[2]] - q[eng.i_hub_dist[[2, 5]]]}
+    if not rigid:
+        tips = [eng.links[i].coords[-4:-2] for i in (2, 5)]
+        expected.update(ee_pos_I=np.array([q[t] for t in tips]), ee_vel_I=np.array([v[t] for t in tips]))
+    for name, value in expected.items():
+        assert np.array_equal(getattr(s, name), value), name
+
+
+def test_the_state_of_a_sample_is_read_again_after_every_change(free_drift):
+    """`_qv` returns the state read at the end of `advance` until the state changes: a
+    capture, a release, a restart or any other change goes through `_pause`, after which it
+    is read from Exudyn again (else the sensors would see the state before the change)."""
+    eng = ExudynEngine(free_drift)
+    eng.advance(1e-3, Inputs())
+    q1, v1 = eng._qv()
+    assert eng._qv()[0] is q1  # the sample's arrays, not a new copy
+    sd = eng.mbs.systemData
+    eng._pause()
+    sd.SetODE2Coordinates_t(np.asarray(sd.GetODE2Coordinates_t()) + 1e-3)
+    assert np.array_equal(eng._qv()[1], v1 + 1e-3)
+    assert np.array_equal(eng.sensors().base_rate_I, v1[eng.i_base] + 1e-3)
+    eng.advance(2e-3, Inputs())
+    assert eng.sensors().time == 2e-3 and eng._qv()[0] is not q1
+    before = eng._qv()[1].copy()
+    info = eng.release(1) if eng.grasp_on[0] else eng.capture(1)  # a switch projects the velocities
+    assert info["impact_loss_J"] >= 0.0
+    assert np.array_equal(eng._qv()[1], np.asarray(sd.GetODE2Coordinates_t()))
+    assert not np.array_equal(eng._qv()[1], before)
+
+
 @pytest.mark.crosscheck
 @pytest.mark.parametrize("rigid", [True, False])
 def test_initial_observables_match_reference(free_drift, rigid):

@@ -10,6 +10,7 @@ O(Δt²); held at the period's start it misses by ½ Δt Ḟ, first order.
 from __future__ import annotations
 
 import copy
+import math
 
 import numpy as np
 import pytest
@@ -39,7 +40,7 @@ def _mean_field(eng, span: float) -> np.ndarray:
     q, v = eng._qv()
     mu = eng.params.orbit.mu
     g_O = -mu * eng.r_O / np.linalg.norm(eng.r_O) ** 3
-    return sum(w * eng._tidal_forces(q + s * v, eng.r_O + s * eng.v_O + 0.5 * s * s * g_O, eng._mass_base())
+    return sum(w * eng._tidal_forces(q, v, s, eng.r_O + s * eng.v_O + 0.5 * s * s * g_O, eng._mass_base())
                for s, w in zip(span * _XS, _WS))
 
 
@@ -113,23 +114,35 @@ def test_a_period_held_thrust_acceleration_is_the_rocket_equation_s_mean():
     assert eng.mbs.GetObjectParameter(eng.base, "mass") == pytest.approx(m_base - 0.5 * dm, rel=1e-15)
 
 
-def test_compiled_link_field_equals_the_dense_quadrature(drifting):
-    """`tidal_link_forces` (the sparse, compiled form used every control sample) against the
-    quadrature written out densely with `tidal`: Σ_g S(ξ_g)ᵀ ρA w_g Δg(S(ξ_g) q), per link.
-    The two differ by round-off only (measured 2e-19 N of 1.4e-3 N)."""
-    from exudyn_model.field import tidal, tidal_link_forces
+def test_compiled_field_equals_the_dense_quadrature(drifting):
+    """`tidal_carrier_forces` (the sparse, compiled form used every control sample, at the
+    positions q + s q̇) against the quadrature written out densely with `tidal`:
+    Σ_g S(ξ_g)ᵀ ρA w_g Δg(S(ξ_g) q) per link, m Δg(ρ) for the base and the target, each in
+    its place of the carrier's vector.  The two differ by round-off only (measured 2e-19 N
+    of 1.4e-3 N)."""
+    from exudyn_model.field import tidal
 
     eng = drifting
-    q, _ = eng._qv()
-    q = q + np.random.default_rng(3).normal(0.0, 1e-3, q.shape)  # every coordinate off its rest value
+    q, v = eng._qv()
+    rng = np.random.default_rng(3)
+    q = q + rng.normal(0.0, 1e-3, q.shape)  # every coordinate off its rest value
+    v = v + rng.normal(0.0, 1e-2, v.shape)
+    s = 0.37e-3
+    x = q + s * v
+    m_base = eng._mass_base()
+    got = eng._tidal_forces(q, v, s, eng.r_O, m_base)
     _, ws, D = eng.mesh.sample(4)
     mu = eng.params.orbit.mu
-    cols, vals = eng._field_S
-    got = tidal_link_forces(q[eng._flex_coords], cols, vals, eng._field_weights, eng.r_O, mu)
-    for row, coords in zip(got, eng._flex_coords):
-        points = (D @ q[coords]).reshape(-1, 2)
+    assert len(eng._flex_coords) == 6
+    for coords, places in zip(eng._flex_coords, eng._carrier_flex):
+        points = (D @ x[coords]).reshape(-1, 2)
         dense = ((eng.params.link.rho_a * ws)[:, None] * tidal(mu, eng.r_O, points)).reshape(-1) @ D
-        assert np.abs(row - dense).max() <= 1e-12 * np.abs(dense).max(), np.abs(row - dense).max()
+        assert np.abs(got[places] - dense).max() <= 1e-12 * np.abs(dense).max(), np.abs(got[places] - dense).max()
+    for coords, places, m in zip(eng._field_points, eng._carrier_points, (m_base, eng.params.target.mass)):
+        dense = m * tidal(mu, eng.r_O, x[coords])
+        assert np.abs(got[places] - dense).max() <= 1e-12 * np.abs(dense).max(), (got[places], dense)
+    # the places between them (the base's and the target's rotation) take no tidal force here
+    assert got[2] == 0.0 and got[5] == 0.0
 
 
 def test_the_stored_mass_matrix_follows_the_burning_base(monkeypatch):
@@ -156,3 +169,26 @@ def test_the_stored_mass_matrix_follows_the_burning_base(monkeypatch):
     assert fresh.observables["system_mass"][-1] < fresh.observables["system_mass"][0]  # it burns
     for name, values in fresh.observables.items():
         np.testing.assert_array_equal(stored.observables[name], values, err_msg=name)
+
+
+def test_the_thrust_inertia_runs_at_every_step_only_while_there_is_thrust():
+    """The thrust inertia's pre-step function has nothing to do without thrust: it is
+    registered with the solver from the first interval with thrust to the first without.
+    While registered it runs at every step: the interval's mean thrust acceleration of O
+    (the impulse it sums step by step) is T/m_sys along the base's x axis."""
+    case = load_case("thrust_burn")
+    eng = ExudynEngine(case)
+    thrust = case.params.actuators.thrust
+    for k, f in enumerate((0.0, 0.0, thrust, thrust, 0.0, 0.0)):
+        eng.advance((k + 1) * 1e-3, Inputs(thrust=f))
+        assert (eng.mbs.GetPreStepUserFunction() != 0) == (f != 0.0), k
+        a_O = eng._thrust_inertia.mean_acceleration(1e-3)
+        if f == 0.0:
+            assert np.all(a_O == 0.0)
+        else:
+            # T/m at the interval's middle, along θ_B at its end (the base turns by ~1e-9 rad
+            # within the interval: hence the 1e-8 of the magnitude in the direction)
+            theta_B = eng._thrust_inertia.theta_ref + eng._qv()[0][eng.i_base[2]] - eng.q_ref[eng.i_base[2]]
+            m_mid = eng._system_mass() + 0.5 * 1e-3 * eng._mass_flow(f)
+            expected = f / m_mid * np.array([math.cos(theta_B), math.sin(theta_B)])
+            assert np.allclose(a_O, expected, rtol=1e-12, atol=1e-8 * f / m_mid), (a_O, expected)
