@@ -83,7 +83,8 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
       axial_damping   factor on the axial Kelvin–Voigt damping η·EA of the links (default 1)
       restart_threshold  input jump (fraction of its limit) that restarts the integrator
       newton_atol     absolute Newton tolerance [N] (default: the case's [exudyn] table, else
-                      1000·ε·EA for flexible links, 1e-10 N for rigid ones)
+                      1000·ε·EA for flexible links, 1e-10 N for rigid ones), times the case's
+                      `exudyn.newton_atol_scale` (1; the gate's decision perturbation)
       jacobian_per_step  a new Newton Jacobian at the start of every step (Exudyn's
                       modifiedNewtonJacUpdatePerStep; default: the case's [exudyn] table, else
                       False: modified Newton keeps it across steps).  Modified Newton stops
@@ -123,7 +124,8 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         p = self.params
         self.newton_atol = float(NEWTON_ATOL_RIGID if newton_atol is None and self.rigid else
                                  first_given(newton_atol, given.newton_atol,
-                                             NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei))
+                                             NEWTON_ATOL_PER_EA * p.link.axial_to_bending * p.link.ei)
+                                 ) * first_given(given.newton_atol_scale, 1.0)
         self.jacobian_per_step = bool(first_given(jacobian_per_step, given.jacobian_per_step, False))
         if jacobian_period is not None and not (isinstance(jacobian_period, (int, float)) and jacobian_period > 0.0):
             raise ValueError(f"jacobian_period must be a positive number of seconds, inf or None, got {jacobian_period!r}")

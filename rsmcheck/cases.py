@@ -208,6 +208,9 @@ class ExudynSettings(_EngineSettings):
     newton_atol: float | None = None  # absolute Newton tolerance [N]
     jacobian_per_step: bool | None = None  # a new Newton Jacobian at every step
     why: str = ""
+    #: factor on the absolute Newton tolerance, whichever it is (None: 1): the gate's decision
+    #: perturbation (rsmcheck.orchestration.gate.step_perturbed_case), never a case file's
+    newton_atol_scale: float | None = None
 
 
 @dataclass(frozen=True)

@@ -211,7 +211,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
         if args.json:
             print(dumps_json({"tolerances": rows}))
             return 0
-        print(f"{'case':20s} {'engine':9s} {'observable':20s} {'gate tol':>10s} {'masses':>10s} {'steps':>10s} "
+        print(f"{'case':20s} {'engine':9s} {'observable':20s} {'gate tol':>10s} {'masses':>10s} {'decisions':>10s} "
               f"{'|value|max':>10s}")
         for r in rows:
             print(f"{r['case']:20s} {r['engine']:9s} {r['observable']:20s} {r['tolerance']:10.2e} "

@@ -14,12 +14,13 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   mass of the parameter set scaled by (1 + `PERTURBATION`), a change 10⁴ times double
   round-off that stands in for another machine or library build (different operation
   order, FMA contraction); the tolerance is `TOL_FACTOR` times the largest change this
-  causes in the observable, and at least `REL_FLOOR` times its largest magnitude.  An
-  engine with an adaptive step (the reference) is run a third time with its relative
-  tolerance scaled by (1 + `STEP_PERTURBATION`): another machine's round-off can flip
-  one accept/reject decision of its step control, after which the solution differs by
-  integration error, not by round-off; `STEP_FACTOR` times the change of that run is the
-  second lower bound of the tolerance.
+  causes in the observable, and at least `REL_FLOOR` times its largest magnitude.  Each
+  engine is run a third time with the tolerance behind its discrete decisions scaled by
+  (1 + `STEP_PERTURBATION`): the reference's rtol (its step control's accept/reject
+  decisions), Exudyn's absolute Newton tolerance (when its iterations stop).  Another
+  machine's round-off can flip such a decision, after which the solution differs by
+  integration error or by what Newton's tolerance leaves, not by round-off;
+  `STEP_FACTOR` times the change of that run is the second lower bound of the tolerance.
 * A run moved when any observable differs from the golden by more than its gate tolerance
   at any stored sample, when the events or phases differ, or when its time grid differs.
   A changed case file or parameter set is reported as such (the run then has no golden to
@@ -45,7 +46,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from rsmcheck.cases import list_cases, load_case
+from rsmcheck.cases import first_given, list_cases, load_case
 from rsmcheck.errors import InputError
 from rsmcheck.observables import NAMES
 from rsmcheck.orchestration.runs import GOLDEN_DIR, Job, expected_wall, get_runs, golden_path, run_engine, run_jobs
@@ -60,13 +61,14 @@ MAX_SAMPLES = 100
 PERTURBATION = 1e-12
 #: gate tolerance = TOL_FACTOR × the change the perturbation causes ...
 TOL_FACTOR = 10.0
-#: ... and, for an engine with an adaptive step (`ADAPTIVE`), at least STEP_FACTOR × the change
-#: a relative change STEP_PERTURBATION of its rtol causes (another step sequence: a flipped
-#: accept/reject decision moved capture's reference reaction forces by 1.4e-6 N between two
-#: CPUs, 19 × a tolerance measured from the mass perturbation alone; docs/gate.md) ...
+#: ... and at least STEP_FACTOR × the change a relative change STEP_PERTURBATION of the
+#: tolerance behind the engine's decisions causes (`step_perturbed_case`: the reference's rtol,
+#: another step sequence; Exudyn's Newton atol, other stopping decisions).  Between two CPUs a
+#: flipped accept/reject decision moved capture's reference reaction forces by 1.4e-6 N, 19 ×
+#: a tolerance measured from the mass perturbation alone, and flipped Newton stops moved
+#: release's Exudyn link deflection by 3.8e-11 m, 279 × (docs/gate.md) ...
 STEP_PERTURBATION = 1e-3
 STEP_FACTOR = 3.0
-ADAPTIVE = ("reference",)
 #: ... and at least REL_FLOOR × the observable's largest magnitude (+ ABS_FLOOR)
 REL_FLOOR = 1e-10
 ABS_FLOOR = 1e-14
@@ -274,8 +276,8 @@ def differences(run: EngineRun, golden_run: EngineRun, index: np.ndarray) -> dic
 def measured_tolerances(nominal: EngineRun, perturbed: EngineRun, stepped: EngineRun | None = None
                         ) -> tuple[dict[str, float], dict[str, float], dict[str, float]]:
     """(gate tolerance, change of the mass perturbation, change of the step perturbation) per
-    observable from the nominal run, the mass-perturbed one and, for an adaptive-step
-    engine, the run with the perturbed rtol (`stepped`; None: no such run, its changes 0)."""
+    observable from the nominal run, the mass-perturbed one and the step-perturbed one
+    (`step_perturbed_case`; None: no such run, its changes 0)."""
     n = len(nominal.observables["time"])
     for other in (perturbed, stepped):
         if other is not None and len(other.observables["time"]) != n:
@@ -416,10 +418,14 @@ def perturbed_case(case):
 
 
 def step_perturbed_case(case):
-    """`case` with its relative tolerance scaled by (1 + STEP_PERTURBATION): another step
-    sequence of an adaptive integrator, at the same accuracy."""
-    return dataclasses.replace(case, solver=dataclasses.replace(case.solver,
-                                                                rtol=case.solver.rtol * (1.0 + STEP_PERTURBATION)))
+    """`case` with the tolerances behind each engine's discrete decisions scaled by
+    (1 + STEP_PERTURBATION), at the same accuracy: its relative tolerance (the reference's
+    step sequence: other accept/reject decisions) and Exudyn's absolute Newton tolerance
+    (`exudyn.newton_atol_scale`: other steps where the iteration stops)."""
+    return dataclasses.replace(
+        case, solver=dataclasses.replace(case.solver, rtol=case.solver.rtol * (1.0 + STEP_PERTURBATION)),
+        exudyn=dataclasses.replace(case.exudyn, newton_atol_scale=first_given(case.exudyn.newton_atol_scale, 1.0)
+                                   * (1.0 + STEP_PERTURBATION)))
 
 
 def summarize_change(old: Golden | None, new_run: EngineRun, case) -> list[str]:
@@ -478,17 +484,16 @@ def gate(cases: list, engines: list[str], root: Path = GOLDEN_DIR, progress=None
 
 
 def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR, progress=None) -> list[tuple[str, str, list[str]]]:
-    """Re-run and rewrite the goldens of `cases` (nominal and perturbed runs, and the
-    step-perturbed one of an adaptive engine; the gate tolerances measured from them) and
-    prepend what moved to the changelog."""
+    """Re-run and rewrite the goldens of `cases` (the nominal, the mass-perturbed and the
+    step-perturbed run of each engine; the gate tolerances measured from them) and prepend
+    what moved to the changelog."""
     if not reason or not reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason (what changed and why the new results are right)")
     variants = [c.variant(True) for c in cases]
     kinds = {"nominal": lambda v: v, "perturbed": perturbed_case, "step-perturbed": step_perturbed_case}
     jobs = [Job(f"{v.name} / {e}" + (f" ({k})" if k != "nominal" else ""), run_engine,
                 (e, make(v)), expected_wall(v, e), (v.name, e, k))
-            for v in variants for e in engines for k, make in kinds.items()
-            if k != "step-perturbed" or e in ADAPTIVE]
+            for v in variants for e in engines for k, make in kinds.items()]
     done = run_jobs(jobs, progress)  # the one pool; a failed job raises once all have ended
     for job in jobs:
         if done[job].error is not None:
@@ -504,9 +509,9 @@ def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR,
                 old = None
             nominal = runs[(v.name, e, "nominal")]
             tol, delta, delta_step = measured_tolerances(nominal, runs[(v.name, e, "perturbed")],
-                                                         runs.get((v.name, e, "step-perturbed")))
+                                                         runs[(v.name, e, "step-perturbed")])
             what = summarize_change(old, nominal, v) if old is not None else ["new golden"]
-            write_golden(path, v, nominal, tol, delta, reason.strip(), delta_step if e in ADAPTIVE else None)
+            write_golden(path, v, nominal, tol, delta, reason.strip(), delta_step)
             entries.append((v.name, e, what))
     append_changelog(root, reason.strip(), entries)
     return entries
@@ -514,7 +519,7 @@ def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR,
 
 def tolerance_table(cases: list, engines: list[str], root: Path = GOLDEN_DIR) -> list[dict[str, Any]]:
     """Per (case, engine, observable): the gate tolerance, the changes the mass and the step
-    perturbation caused (the latter NaN for a golden of a fixed-step engine) and the
+    perturbation caused (the latter NaN for a golden blessed without that run) and the
     observable's largest magnitude, as stored in the goldens."""
     rows = []
     for c in cases:

@@ -91,7 +91,8 @@ def test_gate_tolerances_are_measured_from_the_perturbed_run(tiny_runs):
 
 
 def test_the_step_perturbation_changes_only_rtol_and_bounds_the_tolerance(tiny, tiny_runs):
-    """The reference's third bless run: rtol × (1 + STEP_PERTURBATION), nothing else; it takes
+    """The reference's third bless run: rtol × (1 + STEP_PERTURBATION), nothing else of the
+    reference (Exudyn's Newton tolerance is scaled as well, next test); it takes
     another step sequence (a different count of steps or rejections), and STEP_FACTOR × its
     change is a lower bound of every gate tolerance."""
     case, _ = tiny
@@ -106,6 +107,36 @@ def test_the_step_perturbation_changes_only_rtol_and_bounds_the_tolerance(tiny, 
     assert (engine.steps, engine.rejected) != (reference.steps, reference.rejected)
     tol, delta, delta_step = measured_tolerances(nominal, perturbed, stepped)
     assert delta_step["ee2_pos_B"] > 0.0
+    for name, d in delta_step.items():
+        assert tol[name] >= STEP_FACTOR * d, name
+
+
+def test_the_step_perturbation_moves_exudyn_s_newton_stops_and_bounds_the_tolerance():
+    """Exudyn's third bless run: its absolute Newton tolerance × (1 + STEP_PERTURBATION),
+    whichever it is (the case's, or the engine's default), and nothing else of the model.
+    Where a step's residual lands between the two tolerances the iteration stops at another
+    point (closed_squeeze, 0.5 s: one Newton iteration fewer), and STEP_FACTOR × the change
+    this causes is a lower bound of every gate tolerance.  Without this run a golden of
+    release measured only the mass perturbation, which flipped no stop there, and another CPU
+    moved its link deflection 279 × past the tolerance (docs/gate.md)."""
+    from exudyn_model.engine import ExudynEngine
+
+    case = load_case("closed_squeeze").variant(True)
+    stepped_case = step_perturbed_case(case)
+    assert stepped_case.params == case.params and stepped_case.initial == case.initial
+    assert case.exudyn.newton_atol_scale is None  # a case file cannot set it
+    assert dataclasses.replace(stepped_case.exudyn, newton_atol_scale=None) == case.exudyn
+    nominal_engine, stepped_engine = ExudynEngine(case), ExudynEngine(stepped_case)
+    assert stepped_engine.newton_atol == pytest.approx(nominal_engine.newton_atol * (1 + STEP_PERTURBATION),
+                                                       rel=1e-15)
+    explicit = ExudynEngine(stepped_case, newton_atol=2e-3)
+    assert explicit.newton_atol == pytest.approx(2e-3 * (1 + STEP_PERTURBATION), rel=1e-15)
+    nominal = run(nominal_engine, case, 0.5)
+    perturbed = run(ExudynEngine(perturbed_case(case)), perturbed_case(case), 0.5)
+    stepped = run(stepped_engine, stepped_case, 0.5)
+    assert stepped.solver["newton_iterations"] != nominal.solver["newton_iterations"]
+    tol, delta, delta_step = measured_tolerances(nominal, perturbed, stepped)
+    assert delta_step["joint_angles"] > 0.0
     for name, d in delta_step.items():
         assert tol[name] >= STEP_FACTOR * d, name
 
