@@ -150,6 +150,7 @@ class SteppingMixin:
             self._advance_orbit(t_next - self.t, self._thrust_inertia.mean_acceleration(t_next - self.t))
             self.m_used += self._mass_flow(thrust) * (t_next - self.t)
         self.t = t_next
+        q.flags.writeable = v.flags.writeable = False  # shared by every reader until it changes
         self._qv_sample = (q, v)  # the state at the sample, until it changes (`_qv`)
 
     def _step_length(self, span: float) -> float:

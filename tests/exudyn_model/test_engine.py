@@ -98,6 +98,8 @@ def test_the_state_of_a_sample_is_read_again_after_every_change(free_drift):
     eng.advance(1e-3, Inputs())
     q1, v1 = eng._qv()
     assert eng._qv()[0] is q1  # the sample's arrays, not a new copy
+    with pytest.raises(ValueError):  # and read-only: a reader cannot change them for the others
+        q1[0] += 1.0
     sd = eng.mbs.systemData
     eng._pause()
     sd.SetODE2Coordinates_t(np.asarray(sd.GetODE2Coordinates_t()) + 1e-3)
