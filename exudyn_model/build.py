@@ -300,13 +300,16 @@ class BuildMixin:
         self._i_frame_parent = np.array([i_thB, *self.i_frame[:2], i_thB, *self.i_frame[3:5]])
         self._i_wrist_hub = self.i_hub_dist[[2, 5]]
         self._i_ee = None if self.rigid else np.array([self.links[2].coords[-4:-2], self.links[5].coords[-4:-2]])
-        # all of them in one gather per sample (`_sensors`), in this order: base, target,
-        # rotors, proximal hubs, their parents, frames, their parents, wrist hubs (38), then
-        # the end effectors' x, y (flexible links)
-        self._sensor_rows = np.concatenate([self.i_base, self.i_target, self.i_rotor, self.i_hub_prox,
-                                            self._i_hub_parent, self.i_frame, self._i_frame_parent,
-                                            self._i_wrist_hub, [] if self.rigid else self._i_ee.reshape(-1)]
-                                           ).astype(np.int64)
+        # all of them in one gather per sample (`_sensors`): `_sensor_rows`, and where each
+        # group lies in it (`_sensor_at`, name → slice)
+        groups = {"base": self.i_base, "target": self.i_target, "rotor": self.i_rotor,
+                  "hub_prox": self.i_hub_prox, "hub_parent": self._i_hub_parent, "frame": self.i_frame,
+                  "frame_parent": self._i_frame_parent, "wrist_hub": self._i_wrist_hub}
+        if not self.rigid:
+            groups["ee"] = self._i_ee.reshape(-1)
+        ends = np.cumsum([len(g) for g in groups.values()])
+        self._sensor_at = {name: slice(int(e) - len(g), int(e)) for (name, g), e in zip(groups.items(), ends)}
+        self._sensor_rows = np.concatenate(list(groups.values())).astype(np.int64)
         self.q_ref = np.asarray(mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Reference))
         L = self.params.link.length
         self.first = self.mesh.first_matrix()

@@ -70,21 +70,24 @@ class ObserveMixin:
         (`_sensor_rows`, build.py `_index`), the sensors its slices and their differences."""
         q, v = self._qv()
         qs, vs = q[self._sensor_rows], v[self._sensor_rows]
+        at = self._sensor_at
         if self._i_ee is not None:
-            rE, rEd = qs[38:42].reshape(2, 2), vs[38:42].reshape(2, 2)
+            rE, rEd = qs[at["ee"]].reshape(2, 2), vs[at["ee"]].reshape(2, 2)
         else:
             rE, rEd = self._end_effectors(q, v)
         com, m = self._com(q)
-        AB_T = rot(qs[2]).T
+        base, hub, hub_parent, frame, frame_parent = (at["base"], at["hub_prox"], at["hub_parent"], at["frame"],
+                                                      at["frame_parent"])
+        AB_T = rot(qs[base][2]).T
         return Sensors(
-            time=self.t, base_pose_I=qs[0:3], base_rate_I=vs[0:3],
-            joint_angles=qs[12:18] - qs[18:24], joint_rates=vs[12:18] - vs[18:24],
-            joint_frame_angles=qs[24:30] - qs[30:36], joint_frame_rates=vs[24:30] - vs[30:36],
-            wrist_angles=qs[5] - qs[36:38],
-            motor_angles=qs[6:12], motor_rates=vs[6:12],
+            time=self.t, base_pose_I=qs[base], base_rate_I=vs[base],
+            joint_angles=qs[hub] - qs[hub_parent], joint_rates=vs[hub] - vs[hub_parent],
+            joint_frame_angles=qs[frame] - qs[frame_parent], joint_frame_rates=vs[frame] - vs[frame_parent],
+            wrist_angles=qs[at["target"]][2] - qs[at["wrist_hub"]],
+            motor_angles=qs[at["rotor"]], motor_rates=vs[at["rotor"]],
             ee_pos_I=rE, ee_vel_I=rEd,
-            target_pose_I=qs[3:6], target_rate_I=vs[3:6],
-            com_pos_B=AB_T @ (com - qs[0:2]), grasp_state=self.grasp_on.copy(),
+            target_pose_I=qs[at["target"]], target_rate_I=vs[at["target"]],
+            com_pos_B=AB_T @ (com - qs[base][:2]), grasp_state=self.grasp_on.copy(),
             system_mass=m, orbit_r_I=self.r_O.copy(), orbit_v_I=self.v_O.copy())
 
     def _observables(self, inputs: Inputs) -> dict:
