@@ -43,7 +43,7 @@ from rsmcheck.orchestration.gate import golden_path, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
 from rsmcheck.report.plots import comparison_figure, run_marks, simple_figure
-from rsmcheck.store import EngineRun, read_run, write_text
+from rsmcheck.store import EngineRun, machine_text, read_run, same_machine, write_text
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA_DIR = ROOT / "docs" / "data"
@@ -340,10 +340,16 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
 
 
 def speed_sections(page: Page, bench: list[tuple[Path, dict]]) -> list[tuple[Path, dict]]:
-    """Each stored bench document with what the page shows beside its runs: the speed targets
-    it measures (target, measured, margin), the × real time of the mission's phases per
-    engine against the phase target, and where each run's time went (µs per control sample)."""
+    """Each stored bench document with what the page shows beside its runs: the machine it
+    ran on (and whether that is not the first document's, whose figures then do not compare
+    with its own), the speed targets it measures (target, measured, margin), the × real time
+    of the mission's phases per engine against the phase target, and where each run's time
+    went (µs per control sample)."""
+    first = bench[0][1].get("machine") if bench else None
     for _, doc in bench:
+        doc["machine_text"] = machine_text(doc.get("machine"))
+        # figures of two documents compare only on one machine (rsmcheck.store.same_machine)
+        doc["other_machine"] = doc is not bench[0][1] and not same_machine(first, doc.get("machine"))
         doc["targets"] = [r for r in read_targets(doc) if r.measured is not None]
         doc["phase_fig"] = _phase_speed_figure(page, doc)
         doc["per_sample"] = [{"case": r["case"], "engine": r["engine"], "samples": r["split"]["samples"],

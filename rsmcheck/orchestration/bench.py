@@ -27,6 +27,12 @@ real time), peak memory; a run that fails is reported with its error and the oth
 Last, the speed targets the document measures (rsmcheck.orchestration.targets: the full
 mission's wall time per engine, its slowest phase, the rigid RHS in ABA calls) with their
 margins.  Ratios are only meaningful within one run of this command (shared, noisy machines).
+
+`machine` (`rsmcheck.store.machine`, the table's first line): the CPU model with its family,
+model and clock, logical CPUs, memory, operating system, Python and the numerical packages.
+Two CPUs of the same 2-core machine kind ran the same code's full mission 21 % (reference)
+and 40 % (Exudyn) apart, and the compiled RHS timing did not show it (2 %): figures from two
+documents compare only when their machines do (`rsmcheck.store.same_machine`).
 """
 
 from __future__ import annotations
@@ -44,7 +50,7 @@ from rsmcheck.cases import Case, list_cases, load_case
 from rsmcheck.orchestration.targets import read_targets, targets_table
 from rsmcheck.params import Params
 from rsmcheck.runner import SPLIT
-from rsmcheck.store import dumps_json, git_commit, output_file, write_json
+from rsmcheck.store import dumps_json, git_commit, machine, machine_text, output_file, write_json
 
 VARIANTS = ("short", "full")
 
@@ -152,7 +158,7 @@ def table(doc: dict) -> str:
         head += f" | {e + ' wall s':>16s} {'× real':>8s} {'MB':>6s}"
     if len(engines) == 2:
         head += f" | {engines[1] + '/' + engines[0]:>18s}"
-    lines = [head, "-" * len(head)]
+    lines = [f"machine: {machine_text(doc.get('machine'))}", "", head, "-" * len(head)]
     for (case, variant), by in rows.items():
         sim = next((r["sim_s"] for r in by.values() if math.isfinite(r["sim_s"])), math.nan)
         line = f"{case:20s} {variant:7s} {sim:8.2f}"
@@ -280,7 +286,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         runs = [f.result() for f in futures]
     doc = {"command": "rsmcheck bench " + " ".join(argv if argv is not None else sys.argv[2:]),
            "commit": commit, "dirty": dirty, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-           "engines": engines, "jobs": args.jobs, "runs": runs, "rhs_us": rhs_timings()}
+           "machine": machine(), "engines": engines, "jobs": args.jobs, "runs": runs, "rhs_us": rhs_timings()}
     if out is not None:
         write_json(out, doc)
     print(dumps_json(doc, indent=None) if args.json else table(doc))

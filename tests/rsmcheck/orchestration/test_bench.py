@@ -94,3 +94,15 @@ def test_table_ends_with_the_speed_targets_the_runs_measure():
     assert "ABA" in block[5] and " 1.500 " in block[5] and " yes " in block[5]
     short = table({"engines": ["reference"], "runs": [_run("free_drift", "reference", {})], "rhs_us": rhs})
     assert len(short[short.index("speed target"):].splitlines()) == 3
+
+
+def test_table_starts_with_the_machine_the_runs_ran_on():
+    """The figures of a bench are the machine's: its first line names it, or says that an
+    older document did not record it."""
+    machine = {"cpu": "AMD EPYC (family 25, model 17)", "logical_cpus": 2, "memory_gib": 23.5,
+               "system": "Linux", "python": "3.11.7", "packages": {"exudyn": "1.13.6"}}
+    runs = [_run("free_drift", "reference", {})]
+    first = table({"engines": ["reference"], "runs": runs, "machine": machine}).splitlines()[0]
+    assert first == "machine: AMD EPYC (family 25, model 17), 2 logical CPUs, 23.5 GiB, Linux, Python 3.11.7 " \
+                    "(exudyn 1.13.6)"
+    assert "not recorded" in table({"engines": ["reference"], "runs": runs}).splitlines()[0]
