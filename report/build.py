@@ -333,23 +333,36 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
         kinds=sorted({r.kind for r in rows}), missions=missions, cases=cases, paper=figures,
         dep_head=dep_head, dep_rows=dep_rows, pinocchio=v.get("pinocchio", []), modes=st.modes,
-        studies=_studies(data_dir), bench=bench, faults=_stored_json(data_dir, "faults.json"),
+        studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench), faults=_stored_json(data_dir, "faults.json"),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
         plotly_js=plotly.offline.get_plotlyjs(), short=st.short)
     return write_text(out, html_text)
 
 
+def machines_note(bench: list[tuple[Path, dict]]) -> str:
+    """'' when every stored bench document ran on one recorded machine (rsmcheck.store.same_machine),
+    else a sentence saying how many machines they ran on and how many did not record theirs:
+    wall times then compare within one document only."""
+    recorded = [doc["machine"] for _, doc in bench if doc.get("machine")]
+    kinds: list[dict] = []
+    for m in recorded:
+        if not any(same_machine(m, k) for k in kinds):
+            kinds.append(m)
+    unknown = len(bench) - len(recorded)
+    if len(kinds) + unknown <= 1:
+        return ""
+    return (f"These {len(bench)} documents ran on {len(kinds)} recorded machine{'s' if len(kinds) != 1 else ''}"
+            + (f", and {unknown} did not record theirs" if unknown else "")
+            + ": compare wall times within one document only (ratios between its runs).")
+
+
 def speed_sections(page: Page, bench: list[tuple[Path, dict]]) -> list[tuple[Path, dict]]:
     """Each stored bench document with what the page shows beside its runs: the machine it
-    ran on (and whether that is not the first document's, whose figures then do not compare
-    with its own), the speed targets it measures (target, measured, margin), the × real time
-    of the mission's phases per engine against the phase target, and where each run's time
+    ran on, the speed targets it measures (target, measured, margin), the × real time of
+    the mission's phases per engine against the phase target, and where each run's time
     went (µs per control sample)."""
-    first = bench[0][1].get("machine") if bench else None
     for _, doc in bench:
         doc["machine_text"] = machine_text(doc.get("machine"))
-        # figures of two documents compare only on one machine (rsmcheck.store.same_machine)
-        doc["other_machine"] = doc is not bench[0][1] and not same_machine(first, doc.get("machine"))
         doc["targets"] = [r for r in read_targets(doc) if r.measured is not None]
         doc["phase_fig"] = _phase_speed_figure(page, doc)
         doc["per_sample"] = [{"case": r["case"], "engine": r["engine"], "samples": r["split"]["samples"],

@@ -212,11 +212,12 @@ def package_versions(*names: str) -> dict[str, str]:
     return out
 
 
-def _cpu_model(cpuinfo: str | os.PathLike[str] = "/proc/cpuinfo") -> str:
-    """The processor: on Linux the first processor's `model name` of /proc/cpuinfo with its
-    family, model, stepping, clock and cache (a virtual machine's model name can be as bare
-    as "AMD EPYC": family 25 model 17 tells its generation), else what
-    `platform.processor()` says, else "unknown"."""
+def _cpu(cpuinfo: str | os.PathLike[str] = "/proc/cpuinfo") -> tuple[str, float | None]:
+    """(processor, clock [MHz]).  The processor: on Linux the first processor's `model name`
+    of /proc/cpuinfo with its family, model, stepping and cache (a virtual machine's model
+    name can be as bare as "AMD EPYC": family 25 model 17 tells its generation), else what
+    `platform.processor()` says, else "unknown".  The clock is apart: where the frequency
+    scales it changes from one reading to the next on the same processor."""
     fields: dict[str, str] = {}
     try:
         with open(cpuinfo, encoding="utf-8", errors="replace") as f:
@@ -230,13 +231,13 @@ def _cpu_model(cpuinfo: str | os.PathLike[str] = "/proc/cpuinfo") -> str:
         pass
     name = fields.get("model name") or platform.processor() or "unknown"
     details = [f"{label} {fields[key]}" for key, label in (("cpu family", "family"), ("model", "model"),
-                                                             ("stepping", "stepping")) if fields.get(key)]
-    mhz = fields.get("cpu MHz", "")
-    if mhz:
-        details.append(f"{float(mhz):.0f} MHz" if mhz.replace(".", "", 1).isdigit() else f"{mhz} MHz")
-    if fields.get("cache size"):
-        details.append(f"cache {fields['cache size']}")
-    return f"{name} ({', '.join(details)})" if details else name
+                                                             ("stepping", "stepping"), ("cache size", "cache"))
+               if fields.get(key)]
+    try:
+        mhz = float(fields["cpu MHz"])
+    except (KeyError, ValueError):
+        mhz = None
+    return (f"{name} ({', '.join(details)})" if details else name), mhz
 
 
 def _memory_gib() -> float | None:
@@ -249,10 +250,11 @@ def _memory_gib() -> float | None:
 
 def machine() -> dict[str, Any]:
     """The machine a speed measurement ran on (`rsmcheck bench`): wall times of the same
-    code differ between two CPUs of one machine kind by tens of per cent (benchmarks/README.md,
-    "Recorded runs"), so a stored figure names its CPU model, logical CPUs, memory [GiB],
-    operating system, Python and the numerical packages the engines run on."""
-    return {"cpu": _cpu_model(), "logical_cpus": os.cpu_count(), "memory_gib": _memory_gib(),
+    code differ between two machines of one kind by tens of per cent (benchmarks/README.md),
+    so a stored figure names its CPU model, logical CPUs, memory [GiB], operating system,
+    Python and the numerical packages the engines run on."""
+    cpu, mhz = _cpu()
+    return {"cpu": cpu, "cpu_mhz": mhz, "logical_cpus": os.cpu_count(), "memory_gib": _memory_gib(),
             "system": platform.platform(), "python": platform.python_version(),
             "packages": package_versions("numpy", "scipy", "numba", "exudyn", "pin")}
 
@@ -264,15 +266,18 @@ def machine_text(m: Mapping[str, Any] | None) -> str:
         return "machine not recorded (a document older than the record)"
     mem = m.get("memory_gib")
     packages = ", ".join(f"{k} {v}" for k, v in (m.get("packages") or {}).items())
-    return (f"{m.get('cpu', 'unknown')}, {m.get('logical_cpus', '?')} logical CPUs, "
+    mhz = m.get("cpu_mhz")
+    return (f"{m.get('cpu', 'unknown')}" + (f" at {mhz:.0f} MHz" if isinstance(mhz, (int, float)) else "")
+            + f", {m.get('logical_cpus', '?')} logical CPUs, "
             + (f"{mem:.1f} GiB" if isinstance(mem, (int, float)) else "memory unknown")
             + f", {m.get('system', '?')}, Python {m.get('python', '?')}" + (f" ({packages})" if packages else ""))
 
 
 def same_machine(a: Mapping[str, Any] | None, b: Mapping[str, Any] | None) -> bool:
     """Whether two `machine()` records name the same kind of processor (CPU model with its
-    family, model and clock, and logical CPUs): only then do two documents' wall times
-    compare.  An unrecorded machine is the same as none."""
+    family, model, stepping and cache, and logical CPUs; not the clock, which may scale):
+    only then can two documents' wall times compare.  An unrecorded machine is the same as
+    none."""
     return bool(a) and bool(b) and all(a.get(k) == b.get(k) for k in ("cpu", "logical_cpus"))
 
 
