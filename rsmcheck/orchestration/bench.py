@@ -265,7 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--jobs", type=_positive_int, default=1,
                         help="runs at a time, each in its own process (default 1; 2 on the 2-core machine puts the "
                              "engines side by side)")
-    parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_short.json)")
+    parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_all.json)")
     args = parser.parse_args(argv)
     out = output_file(args.out, "--out") if args.out else None  # before an hour of runs, not after
     engines = ["reference", "exudyn"] if args.engine == "all" else [args.engine]

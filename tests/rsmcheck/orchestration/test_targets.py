@@ -85,11 +85,15 @@ def test_table_names_each_measured_target_with_its_verdict():
 def test_readme_speed_table_says_what_the_stored_full_bench_measured():
     """README's speed table gives, per target, the margin (to 2 digits), the margin of the
     integrator alone and the verdict of the stored full-length bench
-    (docs/data/bench_full.json): a new bench that changes them changes the README."""
-    readings = read_targets(json.loads((DATA / "bench_full.json").read_text()))
+    (docs/data/bench_all.json), and names the processor it ran on: a new bench that changes
+    them changes the README."""
+    doc = json.loads((DATA / "bench_all.json").read_text())
+    readings = read_targets(doc)
     assert all(x.measured is not None for x in readings)
     readme = (DATA.parents[1] / "README.md").read_text(encoding="utf-8")
     speed = readme[readme.index("## Speed"):]
+    assert doc["machine"]["cpu"] in " ".join(speed.replace("*", "").split()), \
+        "README's speed section does not name the bench's processor"
     for x in readings:
         row = next((line for line in speed.splitlines() if line.startswith(f"| {x.target.text}")), None)
         assert row is not None, f"README's speed table has no row '{x.target.text}'"
