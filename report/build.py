@@ -333,7 +333,8 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
         kinds=sorted({r.kind for r in rows}), missions=missions, cases=cases, paper=figures,
         dep_head=dep_head, dep_rows=dep_rows, pinocchio=v.get("pinocchio", []), modes=st.modes,
-        studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench), faults=_stored_json(data_dir, "faults.json"),
+        studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
+        faults=_stored_json(data_dir, "faults.json"),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
         plotly_js=plotly.offline.get_plotlyjs(), short=st.short)
     return write_text(out, html_text)

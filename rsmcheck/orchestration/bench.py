@@ -31,8 +31,8 @@ margins.  Ratios are only meaningful within one run of this command (shared, noi
 `machine` (`rsmcheck.store.machine`, the table's first line): the CPU model with its family,
 model and clock, logical CPUs, memory, operating system, Python and the numerical packages.
 Two machines of the project's 2-core kind, both calling their CPU "AMD EPYC", ran the same
-code's full mission 21 % (reference) and 40 % (Exudyn) apart, and the compiled RHS timing did
-not show it (2 %): figures from two documents compare only when their machines do
+code's full mission 28 % (reference) and 42 % (Exudyn) apart, and the compiled RHS timing did
+not show it (2 %; benchmarks/README.md, "Recorded runs"): figures from two documents compare only when their machines do
 (`rsmcheck.store.same_machine`), and a recorded machine can tell two machines apart, not
 prove them alike (a shared host's load is not in the record).
 """
