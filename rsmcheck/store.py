@@ -260,8 +260,9 @@ def machine() -> dict[str, Any]:
 
 
 def machine_text(m: Mapping[str, Any] | None) -> str:
-    """One line for people: "AMD EPYC, 2 logical CPUs, 23.5 GiB, Linux-…, Python 3.11.7
-    (numpy 2.4.6, …)"; for a document without the record, says so."""
+    """One line for people: "AMD EPYC (family 25, model 17, stepping 1, cache 1024 KB) at
+    2596 MHz, 2 logical CPUs, 23.5 GiB, Linux-…, Python 3.11.7 (numpy 2.4.6, …)"; for a
+    document without the record, says so."""
     if not m:
         return "machine not recorded (a document older than the record)"
     mem = m.get("memory_gib")
