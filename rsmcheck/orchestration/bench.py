@@ -28,6 +28,11 @@ Last, the speed targets the document measures (rsmcheck.orchestration.targets: t
 mission's wall time per engine, its slowest phase, the rigid RHS in ABA calls) with their
 margins.  Ratios are only meaningful within one run of this command (shared, noisy machines).
 
+`--baseline FILE` sets each run beside the same run of a stored document, and `--stored
+FILE` shows a stored document instead of running (`rsmcheck.orchestration.bench_diff`):
+the work (step attempts, Newton iterations) compares across machines, the wall time only
+on the same kind of machine.
+
 `machine` (`rsmcheck.store.machine`, the table's first line): the CPU model with its family,
 model and clock, logical CPUs, memory, operating system, Python and the numerical packages.
 Two machines of the project's 2-core kind, both calling their CPU "AMD EPYC", ran the same
@@ -49,6 +54,8 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Any, Sequence
 
 from rsmcheck.cases import Case, list_cases, load_case
+from rsmcheck.errors import InputError
+from rsmcheck.orchestration.bench_diff import compare, diff_table, read_bench
 from rsmcheck.orchestration.targets import read_targets, targets_table
 from rsmcheck.params import Params
 from rsmcheck.runner import SPLIT
@@ -266,8 +273,20 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="runs at a time, each in its own process (default 1; 2 on the 2-core machine puts the "
                              "engines side by side)")
     parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_all.json)")
+    parser.add_argument("--baseline", metavar="FILE",
+                        help="compare the runs with a stored bench document: the work (steps, Newton iterations) "
+                             "of each run, and its wall time when the machines are alike (bench_diff)")
+    parser.add_argument("--stored", metavar="FILE",
+                        help="run nothing: show this stored bench document (with --baseline, against that one)")
     args = parser.parse_args(argv)
-    out = output_file(args.out, "--out") if args.out else None  # before an hour of runs, not after
+    if args.stored:
+        given = [f"--{k}" for k in _RUN_OPTIONS if getattr(args, k) != parser.get_default(k)]
+        if given:
+            raise InputError("rsmcheck bench", "--stored", f"shows a stored document and runs nothing: "
+                             f"{', '.join(given)} would not be used")
+        return _show_stored(args)
+    base = read_bench(args.baseline) if args.baseline else None  # before an hour of runs, not after
+    out = output_file(args.out, "--out") if args.out else None
     engines = ["reference", "exudyn"] if args.engine == "all" else [args.engine]
     variants = ["full"] if args.full else (list(VARIANTS) if args.variant == "both" else [args.variant])
     names = args.cases or [p.stem for p in list_cases()]
@@ -289,7 +308,35 @@ def main(argv: Sequence[str] | None = None) -> int:
     doc = {"command": "rsmcheck bench " + " ".join(argv if argv is not None else sys.argv[2:]),
            "commit": commit, "dirty": dirty, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
            "machine": machine(), "engines": engines, "jobs": args.jobs, "runs": runs, "rhs_us": rhs_timings()}
+    if base is not None:
+        doc["baseline"] = compare(doc, base, args.baseline)
     if out is not None:
         write_json(out, doc)
-    print(dumps_json(doc, indent=None) if args.json else table(doc))
+    _print(doc, args.json)
     return 1 if any("error" in r for r in runs) else 0
+
+
+def _print(doc: dict, as_json: bool) -> None:
+    """The document as one JSON line, or its tables with the comparison last."""
+    if as_json:
+        print(dumps_json(doc, indent=None))
+        return
+    print(table(doc))
+    if "baseline" in doc:
+        print()
+        print(diff_table(doc["baseline"]))
+
+
+#: the options that make runs, meaningless with --stored
+_RUN_OPTIONS = ("variant", "full", "engine", "cases", "jobs", "out")
+
+
+def _show_stored(args: argparse.Namespace) -> int:
+    """`--stored FILE`: the stored document's tables (and its comparison with --baseline);
+    exit 0, or 1 when the stored document has failed runs, like the run that wrote it."""
+    doc = read_bench(args.stored, "--stored")
+    doc.setdefault("engines", list(dict.fromkeys(r["engine"] for r in doc["runs"])))
+    if args.baseline:
+        doc["baseline"] = compare(doc, read_bench(args.baseline), args.baseline)
+    _print(doc, args.json)
+    return 1 if any("error" in r for r in doc["runs"]) else 0
