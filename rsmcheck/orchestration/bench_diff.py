@@ -60,7 +60,7 @@ def read_bench(path: str | os.PathLike[str], field: str = "--baseline") -> dict[
         raise InputError(str(path), f"{field}: runs", "missing: not a document of rsmcheck bench")
     for i, r in enumerate(runs):
         if not isinstance(r, dict) or not all(isinstance(r.get(k), str) for k in ("case", "engine", "variant")):
-            raise InputError(str(path), f"{field}: runs[{i}]", "needs the strings case, engine and variant")
+            raise InputError(str(path), f"{field}: runs[{i}]", "needs the strings case, engine and variant (not a document of rsmcheck bench)")
     return doc
 
 
