@@ -60,7 +60,8 @@ def read_bench(path: str | os.PathLike[str], field: str = "--baseline") -> dict[
         raise InputError(str(path), f"{field}: runs", "missing: not a document of rsmcheck bench")
     for i, r in enumerate(runs):
         if not isinstance(r, dict) or not all(isinstance(r.get(k), str) for k in ("case", "engine", "variant")):
-            raise InputError(str(path), f"{field}: runs[{i}]", "needs the strings case, engine and variant (not a document of rsmcheck bench)")
+            raise InputError(str(path), f"{field}: runs[{i}]",
+                             "needs the strings case, engine and variant (not a document of rsmcheck bench)")
     return doc
 
 
@@ -177,7 +178,8 @@ def diff_table(cmp: Mapping[str, Any]) -> str:
         lines.append(line + f"{row['work']:18s} {_count(row['work_count'])} {_count(row['base_work'])} {ratio} "
                      f"{wall}  {row['verdict']}" + (f" ({notes})" if notes else ""))
     if absent:
-        lines.append(f"not in the baseline ({len(absent)}): " + ", ".join(absent[:4]) + (", …" if len(absent) > 4 else ""))
+        lines.append(f"not in the baseline ({len(absent)}): " + ", ".join(absent[:4])
+                     + (", …" if len(absent) > 4 else ""))
     lines.append(summary(cmp))
     return "\n".join(lines)
 
