@@ -6,7 +6,7 @@ the counts behind its time (`bench.SOLVER_KEYS`): the reference's accepted and r
 steps (each a Dormand–Prince step of six right-hand sides, or an IMEX step of eight in the
 quiet segments, `quiet_steps`), Exudyn's Newton iterations, Jacobians and retries at its
 fixed step.  The same code on two machines of the project's 2-core kind (the full benches of
-8116426 and 82dd8b1, benchmarks/README.md, "Work counts across machines") moved every wall
+8116426 and 82dd8b1, benchmarks/README.md, "The work, comparable across machines") moved every wall
 time by 9–56 % and these counts by at most 0.31 % (the reference, whose step-size control
 sees the last bits of the arithmetic) and 0.023 % (Exudyn).  So:
 

@@ -8,8 +8,9 @@ import pytest
 
 from rsmcheck.cli import main as cli
 from rsmcheck.errors import InputError
+from rsmcheck.orchestration.bench import SOLVER_KEYS
 from rsmcheck.orchestration.bench import main as bench
-from rsmcheck.orchestration.bench_diff import compare, diff_table, read_bench
+from rsmcheck.orchestration.bench_diff import COUNT_KEYS, SETTING_KEYS, compare, diff_table, read_bench
 
 EPYC = {"cpu": "AMD EPYC (family 25, model 17)", "logical_cpus": 2, "cpu_mhz": 2596.0}
 XEON = {"cpu": "Intel Xeon (family 6, model 85)", "logical_cpus": 2}
@@ -124,3 +125,10 @@ def test_bench_shows_a_stored_document_against_another(tmp_path, capsys):
     assert cli(["bench", "--baseline", str(tmp_path / "none.json"), "--cases", "free_drift"]) == 2
     err = capsys.readouterr().err.strip()
     assert "none.json" in err and "--baseline" in err and len(err.splitlines()) == 1
+
+
+def test_every_solver_key_a_bench_stores_is_a_count_or_a_setting():
+    """A key the bench starts storing is compared (a count) or named when it changes (a
+    setting), never silently left out."""
+    assert set(SOLVER_KEYS) == set(COUNT_KEYS) | set(SETTING_KEYS)
+    assert not set(COUNT_KEYS) & set(SETTING_KEYS)
