@@ -37,6 +37,7 @@ from rsmcheck.cases import Case, list_cases, load_case
 from rsmcheck.errors import InputError
 from rsmcheck.observables import BY_NAME
 from rsmcheck.orchestration.bench import per_sample_us
+from rsmcheck.orchestration.bench_diff import work
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.orchestration.compare import metric_label
 from rsmcheck.orchestration.gate import golden_path, read_golden
@@ -359,11 +360,14 @@ def machines_note(bench: list[tuple[Path, dict]]) -> str:
 
 def speed_sections(page: Page, bench: list[tuple[Path, dict]]) -> list[tuple[Path, dict]]:
     """Each stored bench document with what the page shows beside its runs: the machine it
-    ran on, the speed targets it measures (target, measured, margin), the × real time of
+    ran on, each run's work (`bench_diff.work`: what compares across machines), the speed targets it measures (target, measured, margin), the × real time of
     the mission's phases per engine against the phase target, and where each run's time
     went (µs per control sample)."""
     for _, doc in bench:
         doc["machine_text"] = machine_text(doc.get("machine"))
+        for r in doc.get("runs", []):
+            name, count = work(r)
+            r["work_text"] = f"{count:,.0f} {name}".replace(",", "\u202f") if count is not None else "–"
         doc["targets"] = [r for r in read_targets(doc) if r.measured is not None]
         doc["phase_fig"] = _phase_speed_figure(page, doc)
         doc["per_sample"] = [{"case": r["case"], "engine": r["engine"], "samples": r["split"]["samples"],

@@ -133,13 +133,14 @@ def test_stored_bench_shows_where_each_run_spent_its_time(rendered, tmp_path):
 
 
 def test_stored_benches_name_their_machines_and_say_when_they_differ(rendered, tmp_path):
-    """Each bench says its machine; when the stored documents did not all run on one recorded
-    machine the section says so (their wall times do not compare), and not when they did."""
+    """Each bench says its machine and each run's work; when the stored documents did not all
+    run on one recorded machine the section says so (their wall times do not compare, their
+    work does), and not when they did."""
     epyc = {"cpu": "AMD EPYC (family 25, model 17)", "logical_cpus": 2, "memory_gib": 23.5, "system": "Linux",
             "python": "3.11.7", "packages": {}}
     doc = {"command": "rsmcheck bench", "commit": "abc", "utc": "now", "engines": ["reference"],
            "runs": [{"case": "free_drift", "engine": "reference", "variant": "short", "wall_s": 1.0, "sim_s": 1.0,
-                     "peak_mb": 1.0}]}
+                     "peak_mb": 1.0, "solver": {"steps": 12000, "rejected_steps": 345}}]}
 
     def speed(machines):
         for f in tmp_path.glob("bench_*.json"):
@@ -151,9 +152,11 @@ def test_stored_benches_name_their_machines_and_say_when_they_differ(rendered, t
 
     one = speed([epyc, dict(epyc, memory_gib=31.0)])  # another kernel or memory: the same processor
     assert one.count("AMD EPYC (family 25, model 17), 2 logical CPUs") == 2 and "compare wall times" not in one
+    assert one.count("<td>12\u202f345 step attempts</td>") == 2  # the work, which compares across machines
     xeon = dict(epyc, cpu="Intel Xeon (family 6, model 85)")
-    assert "These 3 documents ran on 2 recorded machines: compare wall times within one document only" \
-        in speed([epyc, xeon, epyc])
+    three = speed([epyc, xeon, epyc])
+    assert "These 3 documents ran on 2 recorded machines: compare wall times within one document only" in three
+    assert "Its work (the <em>work</em> column" in three
     old = speed([epyc, None])
     assert "machine not recorded" in old and "ran on 1 recorded machine, and 1 did not record theirs" in old
 
