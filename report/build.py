@@ -360,9 +360,10 @@ def machines_note(bench: list[tuple[Path, dict]]) -> str:
 
 def speed_sections(page: Page, bench: list[tuple[Path, dict]]) -> list[tuple[Path, dict]]:
     """Each stored bench document with what the page shows beside its runs: the machine it
-    ran on, each run's work (`bench_diff.work`: what compares across machines), the speed targets it measures (target, measured, margin), the × real time of
-    the mission's phases per engine against the phase target, and where each run's time
-    went (µs per control sample)."""
+    ran on, each run's work (`bench_diff.work`: what compares across machines), the speed
+    targets it measures (target, measured, margin), the × real time of the mission's phases
+    per engine against the phase target, and where each run's time went (µs per control
+    sample)."""
     for _, doc in bench:
         doc["machine_text"] = machine_text(doc.get("machine"))
         for r in doc.get("runs", []):
