@@ -65,7 +65,7 @@ from exudyn.itemInterface import (  # noqa: E402
 
 from exudyn_model import links  # noqa: E402
 from exudyn_model.field import N_GAUSS_FIELD, _ThrustInertia  # noqa: E402
-from rsmcheck.geometry import rot  # noqa: E402
+from rsmcheck.core.geometry import rot  # noqa: E402
 
 PP, PF = "PP", "PF"
 

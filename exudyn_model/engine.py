@@ -1,4 +1,4 @@
-"""The paper's robot from Exudyn's general items, as an `rsmcheck.engine.Engine`: a facade
+"""The paper's robot from Exudyn's general items, as an `rsmcheck.core.engine.Engine`: a facade
 over the modules that do the work, each named by its job as in `reference_model/` (so the
 two engines read side by side):
 
@@ -30,11 +30,11 @@ from exudyn_model.field import FieldMixin
 from exudyn_model.observe import ObserveMixin
 from exudyn_model.stepping import SteppingMixin, _Worker
 from exudyn_model.switching import SwitchingMixin
-from rsmcheck.cases import Case, first_given
-from rsmcheck.engine import Inputs, Sensors
-from rsmcheck.initial import StartState, build_initial
-from rsmcheck.params import Params
-from rsmcheck.store import package_versions
+from rsmcheck.core.cases import Case, first_given
+from rsmcheck.core.engine import Inputs, Sensors
+from rsmcheck.driver.initial import StartState, build_initial
+from rsmcheck.core.params import Params
+from rsmcheck.core.store import package_versions
 
 #: Default solver settings (convergence study in docs/exudyn.md).
 SUBSTEPS_DEFAULT = 2  # generalized-α steps per 1 ms control period
@@ -95,7 +95,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
                       Exudyn's modified Newton asks for one (contractivity > ½).  Without
                       effect with jacobian_per_step
       start           the end state of a previous run this run continues from
-                      (rsmcheck.initial.StartState), None: the case's [initial]
+                      (rsmcheck.driver.initial.StartState), None: the case's [initial]
     """
 
     name = "exudyn"
@@ -171,7 +171,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         # this thread (`_Worker`: never from a finalizer, which may run inside a pybind11 call)
         self._worker = _Worker(self) if stepping == "continuous" else None
 
-    # ---- Engine protocol (rsmcheck.engine.Engine) ------------------------------------
+    # ---- Engine protocol (rsmcheck.core.engine.Engine) ------------------------------------
     def time(self) -> float:
         return self.t
 

@@ -3,7 +3,7 @@
 A link of length L is a chain of `n_elements` equal ANCF cable elements (cubic Hermite
 interpolation of position; nodal coordinates x, y, ∂x/∂ξ, ∂y/∂ξ).  The material abscissa
 ξ ∈ [0, L] is the arc length of the undeformed, unstretched link, from its proximal pin
-(ξ = 0) to its distal pin (ξ = L).  Material data come from `rsmcheck.params.LinkParams`
+(ξ = 0) to its distal pin (ξ = L).  Material data come from `rsmcheck.core.params.LinkParams`
 only (docs/physics.md §2):
 
     massPerLength = ρA,  bendingStiffness = EI,  axialStiffness = EA = axial_to_bending·EI,
@@ -40,7 +40,7 @@ from exudyn.itemInterface import (  # noqa: E402
     NodePoint2DSlope1, NodeRigidBody2D, ObjectANCFCable2D, ObjectGround, ObjectJointGeneric,
     ObjectJointRevolute2D, ObjectRigidBody2D)
 
-from rsmcheck.params import LinkParams, Params  # noqa: E402
+from rsmcheck.core.params import LinkParams, Params  # noqa: E402
 
 #: Elements per link chosen by the convergence study (docs/exudyn.md): PP and PF f1, f2
 #: within 0.05 % of the Euler–Bernoulli values.
@@ -291,8 +291,8 @@ def link_frequencies(params: Params | LinkParams, basis: str, n_elements: int = 
 def convergence_table(params: Params | None = None, counts=(2, 4, 6, 8, 12, 16)) -> list[dict]:
     """Relative errors of the first two PP and PF frequencies against Euler–Bernoulli and
     against Table 2 as printed, per element count (the study recorded in docs/exudyn.md)."""
-    from rsmcheck.beams import analytic_frequencies
-    from rsmcheck.params import TABLE2_HZ
+    from rsmcheck.core.beams import analytic_frequencies
+    from rsmcheck.core.params import TABLE2_HZ
 
     params = params or Params()
     rows = []

@@ -2,7 +2,7 @@
 the coupled frequencies of the robot at rest in a case's configuration (`rsmcheck modes`)
 and the linear plant of a case at its initial state (the closed-loop analysis,
 rsmcheck.orchestration.closed_loop).  `coupled_frequencies` and `linear_plant` mirror
-`reference_model/modes.py`: the same signatures (rsmcheck/engine.py), `engine_options`
+`reference_model/modes.py`: the same signatures (rsmcheck/core/engine.py), `engine_options`
 going to `ExudynEngine` (n_elements, default `links.N_ELEMENTS_DEFAULT` here, not the
 case's [exudyn] table).
 
@@ -21,7 +21,7 @@ import numpy as np
 
 from exudyn_model import links
 from exudyn_model.links import link_frequencies
-from rsmcheck.cases import at_rest, undamped
+from rsmcheck.core.cases import at_rest, undamped
 
 __all__ = ["at_rest_undamped", "coupled_frequencies", "linear_plant", "link_frequencies"]
 

@@ -1,4 +1,4 @@
-"""What the Exudyn model reports: the sensors of the shared driver (rsmcheck.engine.Sensors)
+"""What the Exudyn model reports: the sensors of the shared driver (rsmcheck.core.engine.Sensors)
 and every observable (docs/physics.md §11) with energy and momentum, read from the ODE2
 coordinates by the index tables of `exudyn_model.build`, and the grasp forces by the
 index-1 solve of `exudyn_model.reactions`.  The reference's mirror is
@@ -17,8 +17,8 @@ from exudyn_model import field as fld
 from exudyn_model import links, reactions
 from exudyn_model.build import _perp
 from exudyn_model.field import N_GAUSS_FIELD
-from rsmcheck.engine import Inputs, Sensors
-from rsmcheck.geometry import rot
+from rsmcheck.core.engine import Inputs, Sensors
+from rsmcheck.core.geometry import rot
 
 
 def _cross(a, b) -> float:

@@ -274,7 +274,7 @@ def grasp_forces(engine, inputs=None) -> np.ndarray:
     sign of `GetObjectOutput(grasp joint, Force)`: the force of the arm on the target
     (marker 0 of the joint; Exudyn's M q̈ + Gᵀλ = f puts −λ on the marker-1 body).
 
-    inputs: the held inputs of the coming period (`rsmcheck.engine.Inputs`), applied for the
+    inputs: the held inputs of the coming period (`rsmcheck.core.engine.Inputs`), applied for the
     evaluation by `held_inputs`; None: the loads as they stand in the mbs (those of the
     period that just ended, the state the integrator's own multipliers belong to)."""
     out = np.zeros(4)

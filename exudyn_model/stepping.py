@@ -33,8 +33,8 @@ with contextlib.redirect_stdout(io.StringIO()):
     import exudyn as exu  # noqa: E402
 
 from exudyn_model.field import _ThrustInertia  # noqa: E402
-from rsmcheck.engine import Inputs  # noqa: E402
-from rsmcheck.errors import SimulationDiverged  # noqa: E402
+from rsmcheck.core.engine import Inputs  # noqa: E402
+from rsmcheck.core.errors import SimulationDiverged  # noqa: E402
 
 
 class SteppingMixin:

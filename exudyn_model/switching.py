@@ -15,8 +15,8 @@ import numpy as np
 
 from exudyn_model import reactions
 from exudyn_model.build import PF, PP
-from rsmcheck.errors import SimulationDiverged
-from rsmcheck.geometry import rot
+from rsmcheck.core.errors import SimulationDiverged
+from rsmcheck.core.geometry import rot
 
 
 class SwitchingMixin:

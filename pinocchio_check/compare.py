@@ -42,7 +42,7 @@ import numpy as np
 
 from pinocchio_check import states as S
 from pinocchio_check.model import N_Q, Q_NAMES, TARGET_NAMES, PinocchioRSM
-from rsmcheck.params import Params
+from rsmcheck.core.params import Params
 
 TOLERANCE = 1e-10
 TINY = 1e-300
@@ -275,7 +275,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for n_modes in args.modes:
         rows += run_checks(n_states=args.states, first_seed=args.seed, n_modes=n_modes, open_arms=(1, 2))
     if args.json:
-        from rsmcheck.store import dumps_json
+        from rsmcheck.core.store import dumps_json
 
         print(dumps_json({"checks": rows}, indent=None))  # strict JSON: no NaN/Infinity
     else:

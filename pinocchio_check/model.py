@@ -80,8 +80,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from rsmcheck.geometry import rot
-from rsmcheck.params import Params
+from rsmcheck.core.geometry import rot
+from rsmcheck.core.params import Params
 
 #: Reference-coordinate names of the RSM, in the order of q.
 Q_NAMES = ("x_B", "y_B", "theta_B", "J1_1", "J2_1", "J3_1", "J1_2", "J2_2", "J3_2")

@@ -18,9 +18,9 @@ import numpy as np
 
 from reference_model import core
 from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
-from rsmcheck.geometry import rot
-from rsmcheck.initial import InitialConfiguration
-from rsmcheck.params import Params
+from rsmcheck.core.geometry import rot
+from rsmcheck.driver.initial import InitialConfiguration
+from rsmcheck.core.params import Params
 
 N_MAX_MODES = 6
 #: static correction shapes per flexible link when they are on (one per end couple)

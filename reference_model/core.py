@@ -260,7 +260,7 @@ def _mechanical_state(x, m):
 
 @njit(cache=True)
 def sensor_values(x, m, sw):
-    """What the sensors of the shared driver read, in one call (rsmcheck.engine.Sensors):
+    """What the sensors of the shared driver read, in one call (rsmcheck.core.engine.Sensors):
     end effectors rE, ṙE (2×2), ψ_J, ψ̇_J (6), wrist angles ψ_w (2), system COM relative to
     O (2) and the system mass.  COM: (m_B r_B + m_T r_T + Σ_i (m R_i + A(θ_i) S1_i)) / m_sys
     with S1_i = (m L/2, φ̄·a_i)."""

@@ -1,4 +1,4 @@
-"""The reference model as an `rsmcheck.engine.Engine`: a facade over the modules that do
+"""The reference model as an `rsmcheck.core.engine.Engine`: a facade over the modules that do
 the work, each named by its job as in `exudyn_model/` (so the two engines read side by side):
 
     build.py       parameters → the model's arrays (`ReferenceModel`), the state layout, the
@@ -24,11 +24,11 @@ from reference_model import observe, switching
 from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, initial_state
 from reference_model.stepping import SteppingMixin
 from reference_model.trbdf2 import N_WORK
-from rsmcheck.cases import INTEGRATORS, Case, first_given
-from rsmcheck.engine import Inputs, Sensors
-from rsmcheck.initial import StartState, build_initial, orbit_start
-from rsmcheck.params import Params
-from rsmcheck.store import package_versions
+from rsmcheck.core.cases import INTEGRATORS, Case, first_given
+from rsmcheck.core.engine import Inputs, Sensors
+from rsmcheck.driver.initial import StartState, build_initial, orbit_start
+from rsmcheck.core.params import Params
+from rsmcheck.core.store import package_versions
 
 H_MAX = 0.05  # s, explicit DP5(4): stability bounds h near 2.5 ms anyway
 H_MAX_IMPLICIT = 1.0  # s, TR-BDF2 and IMEX: accuracy bounds the step
@@ -42,7 +42,7 @@ class ReferenceEngine(SteppingMixin):
     case's control period, docs/physics.md §7), h_max (largest step), static_modes
     (docs/physics.md §2.4); each defaults to the case's [solver] / [reference] table, else
     the engine's default.  `start`: the
-    end state of a previous run this run continues from (rsmcheck.initial.StartState), None
+    end state of a previous run this run continues from (rsmcheck.driver.initial.StartState), None
     to start from the case's [initial].
     """
 
@@ -88,7 +88,7 @@ class ReferenceEngine(SteppingMixin):
         self.capture_arm = case.capture.arm
         self.capture_point = np.asarray(self.params.geometry.grasp_T(case.capture.arm), float)
 
-    # ---- Engine protocol (rsmcheck.engine.Engine) ------------------------------------
+    # ---- Engine protocol (rsmcheck.core.engine.Engine) ------------------------------------
     def time(self) -> float:
         return self.t
 
@@ -121,7 +121,7 @@ class ReferenceEngine(SteppingMixin):
     def import_state(self, exact: dict) -> None:
         """Continue from `export_state()` of an engine of the same layout (else keep the rigid
         start of the case, already built).  A case that enters an orbit the previous phase
-        did not have places O on its orbit at the system COM (rsmcheck.initial.place_on_orbit):
+        did not have places O on its orbit at the system COM (rsmcheck.driver.initial.place_on_orbit):
         positions and velocities move by the COM's (the rigid part of the chained end state)."""
         lay = self.model.layout
         if exact.get("engine", self.name) != self.name or "x" not in exact \

@@ -1,7 +1,7 @@
 """Linearisation of the reference model: the linear plant of a case at its initial state
 (the closed-loop analysis, rsmcheck.orchestration.closed_loop) and the coupled frequencies
 of the robot at rest (`rsmcheck modes`).  Mirrors `exudyn_model/modes.py`: the same
-functions with the same signatures (rsmcheck/engine.py), so the orchestration asks both
+functions with the same signatures (rsmcheck/core/engine.py), so the orchestration asks both
 engines the same way; `engine_options` go to `ReferenceEngine` (e.g. n_modes).
 
 Both are central differences of the reference's own ODE (`core.rhs`) and sensors about
@@ -15,7 +15,7 @@ import numpy as np
 
 from reference_model import core
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import at_rest, undamped
+from rsmcheck.core.cases import at_rest, undamped
 
 
 def coupled_frequencies(case, n: int = 6, f_min: float = 1.0, **engine_options) -> np.ndarray:

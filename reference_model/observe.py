@@ -14,8 +14,8 @@ import numpy as np
 from reference_model import core
 from reference_model.build import Configuration, ReferenceModel
 from reference_model.field import tidal_potential
-from rsmcheck.engine import Sensors
-from rsmcheck.geometry import rot
+from rsmcheck.core.engine import Sensors
+from rsmcheck.core.geometry import rot
 
 
 def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> np.ndarray:
@@ -81,7 +81,7 @@ def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
 
 
 def sensors(model: ReferenceModel, t: float, x: np.ndarray, cfg: Configuration) -> Sensors:
-    """What the shared driver's controllers and supervisor read at time t (rsmcheck.engine.Sensors)."""
+    """What the shared driver's controllers and supervisor read at time t (rsmcheck.core.engine.Sensors)."""
     lay = model.layout
     q, qd = x[lay.q], x[lay.qd]
     rE, rEd, psi, psid, psi_w, com, m = core.sensor_values(x, *model.core_args(cfg))

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import Case
-from rsmcheck.params import Params
-from rsmcheck.runner import Progress, run
-from rsmcheck.store import EngineRun
+from rsmcheck.core.cases import Case
+from rsmcheck.core.params import Params
+from rsmcheck.driver.runner import Progress, run
+from rsmcheck.core.store import EngineRun
 
 
 def simulate(case: Case, params: Params | None = None, short: bool = False,

@@ -31,8 +31,8 @@ from reference_model import core
 from reference_model import imex
 from reference_model.dopri5 import integrate_dopri5
 from reference_model.trbdf2 import W_HAVE_J, W_JACOBIANS, integrate_trbdf2
-from rsmcheck.engine import Inputs
-from rsmcheck.errors import SimulationDiverged
+from rsmcheck.core.engine import Inputs
+from rsmcheck.core.errors import SimulationDiverged
 
 #: error-control scale per kind of state component: atol_i = rtol · scale_i
 ATOL_SCALE = {

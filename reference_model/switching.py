@@ -16,7 +16,7 @@ import numpy as np
 from reference_model import core
 from reference_model.beam_modes import PF, PP, quadrature
 from reference_model.build import Configuration, ReferenceModel
-from rsmcheck.geometry import rot
+from rsmcheck.core.geometry import rot
 
 
 @dataclass(frozen=True)

@@ -33,9 +33,9 @@ from typing import Any, Sequence
 import jinja2
 import plotly.offline
 
-from rsmcheck.cases import Case, list_cases, load_case
-from rsmcheck.errors import InputError
-from rsmcheck.observables import BY_NAME
+from rsmcheck.core.cases import Case, list_cases, load_case
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.observables import BY_NAME
 from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.bench_diff import work
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
@@ -44,7 +44,7 @@ from rsmcheck.orchestration.gate import golden_path, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
 from rsmcheck.report.plots import comparison_figure, run_marks, simple_figure
-from rsmcheck.store import EngineRun, machine_text, read_run, same_machine, write_text
+from rsmcheck.core.store import EngineRun, machine_text, read_run, same_machine, write_text
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA_DIR = ROOT / "docs" / "data"
@@ -342,7 +342,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
 
 
 def machines_note(bench: list[tuple[Path, dict]]) -> str:
-    """'' when every stored bench document ran on one recorded machine (rsmcheck.store.same_machine),
+    """'' when every stored bench document ran on one recorded machine (rsmcheck.core.store.same_machine),
     else a sentence saying how many machines they ran on and how many did not record theirs:
     wall times then compare within one document only."""
     recorded = [doc["machine"] for _, doc in bench if doc.get("machine")]

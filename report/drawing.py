@@ -16,10 +16,10 @@ import math
 
 import numpy as np
 
-from rsmcheck.geometry import arm_pins, rot
-from rsmcheck.params import Params
+from rsmcheck.core.geometry import arm_pins, rot
+from rsmcheck.core.params import Params
 from rsmcheck.report.plots import DASH
-from rsmcheck.store import EngineRun
+from rsmcheck.core.store import EngineRun
 
 ARM_COLORS = {1: "#1f77b4", 2: "#d62728"}
 N_POINTS = 21  # points along a drawn link

@@ -15,12 +15,12 @@ from typing import Callable
 
 import numpy as np
 
-from rsmcheck.observables import BY_NAME
+from rsmcheck.core.observables import BY_NAME
 from rsmcheck.orchestration.collect import phase_runs
-from rsmcheck.params import Params
+from rsmcheck.core.params import Params
 from rsmcheck.report.drawing import snapshot_figure
 from rsmcheck.report.plots import comparison_figure, run_marks
-from rsmcheck.store import EngineRun
+from rsmcheck.core.store import EngineRun
 
 
 @dataclass(frozen=True)

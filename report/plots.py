@@ -14,7 +14,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from rsmcheck.store import EngineRun
+from rsmcheck.core.store import EngineRun
 
 MAX_BUCKETS = 400
 #: line style of each engine's traces (and of the golden of the reference)

@@ -15,13 +15,13 @@ import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
-from rsmcheck.cases import list_cases, load_case
-from rsmcheck.errors import InputError, exit_code, flush_stdout
+from rsmcheck.core.cases import list_cases, load_case
+from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.orchestration import bench, compare, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.engines import ENGINES
-from rsmcheck.runner import terminal_progress
-from rsmcheck.store import dumps_json, output_dir, output_file
+from rsmcheck.driver.runner import terminal_progress
+from rsmcheck.core.store import dumps_json, output_dir, output_file
 
 
 class _Parser(argparse.ArgumentParser):

@@ -48,10 +48,10 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
     """One engine run in a worker process: (EngineRun or SequenceRun, wall seconds)."""
     import time
 
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
     from rsmcheck.orchestration.chain import run_case
     from rsmcheck.orchestration.runs import run_engine
-    from rsmcheck.store import read_run
+    from rsmcheck.core.store import read_run
 
     case = load_case(case_name)
     t0 = time.monotonic()
@@ -73,9 +73,9 @@ def _job(engine: str, case_name: str, short: bool, options: dict[str, Any], work
 def expected_wall(case_name: str, engine: str) -> float:
     """The wall time the case's golden recorded for `engine` (rsmcheck.orchestration.runs); 0 for a
     case that does not load (the tests themselves report on it).  Only orders the jobs."""
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
     from rsmcheck.orchestration.runs import expected_wall as recorded
-    from rsmcheck.errors import InputError
+    from rsmcheck.core.errors import InputError
 
     try:
         return recorded(load_case(case_name), engine)

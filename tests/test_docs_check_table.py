@@ -13,7 +13,7 @@ import json
 import re
 from pathlib import Path
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 
 ROOT = Path(__file__).resolve().parents[1]
 STORED = ROOT / "docs" / "data" / "check_short.json"

@@ -37,6 +37,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: package name → folder (rsmcheck.report is installed from report/, pyproject's package-dir)
 PACKAGES = {
     "rsmcheck": "rsmcheck",
+    "rsmcheck.core": "rsmcheck/core",
+    "rsmcheck.driver": "rsmcheck/driver",
     "rsmcheck.orchestration": "rsmcheck/orchestration",
     "rsmcheck.report": "report",
     "reference_model": "reference_model",
@@ -46,10 +48,8 @@ PACKAGES = {
 
 #: (layer, module patterns), lowest first; "pkg.*" is a package and every module of it
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("floor", ("rsmcheck", "rsmcheck.errors", "rsmcheck.params", "rsmcheck.observables", "rsmcheck.store",
-               "rsmcheck.engine", "rsmcheck.orbit", "rsmcheck.trajectories", "rsmcheck.cases",
-               "rsmcheck.geometry", "rsmcheck.beams")),
-    ("driver", ("rsmcheck.initial", "rsmcheck.controllers", "rsmcheck.runner")),
+    ("floor", ("rsmcheck", "rsmcheck.core.*")),
+    ("driver", ("rsmcheck.driver.*",)),
     ("engines", ("reference_model.*", "exudyn_model.*", "pinocchio_check.*")),
     ("orchestration", ("rsmcheck.orchestration.*",)),  # the folder is the layer
     ("report", ("rsmcheck.report.*",)),
@@ -69,7 +69,7 @@ ENGINE_LIBRARIES = {"exudyn": "exudyn_model", "pinocchio": "pinocchio_check"}
 #: `rsmcheck --help` from 0.4 s to 1.0 s
 DEFERRED_ALLOWED = {("rsmcheck.cli", "rsmcheck.orchestration.collect"), ("rsmcheck.cli", "rsmcheck.report.build"),
                     ("rsmcheck.cli", "rsmcheck.orchestration.modes")}
-#: generic top-level names the project must not import (installed as rsmcheck.cases and
+#: generic top-level names the project must not import (installed as rsmcheck.core.cases and
 #: rsmcheck.report; cases/ holds only data)
 GENERIC_NAMES = ("cases", "report")
 
@@ -318,8 +318,8 @@ def test_no_generic_top_level_names():
 # ---------------------------------------------------------------------------------------
 def test_the_checks_catch_a_cycle_an_upward_import_and_an_engine_crossing():
     sources = {
-        "rsmcheck.params": "from rsmcheck.runner import run\n",  # floor → driver: upward
-        "rsmcheck.runner": "import numpy\nfrom rsmcheck import params\n",  # closes a cycle
+        "rsmcheck.core.params": "from rsmcheck.driver.runner import run\n",  # floor → driver: upward
+        "rsmcheck.driver.runner": "import numpy\nfrom rsmcheck.core import params\n",  # closes a cycle
         "rsmcheck.orchestration.compare": "def f():\n    from rsmcheck.orchestration.gate import g\n",  # deferred
         "rsmcheck.orchestration.gate": "from rsmcheck.orchestration.compare import f\n",  # cycle: listed only
         "exudyn_model.engine": "from reference_model.build import M\n",  # engine → engine
@@ -328,17 +328,17 @@ def test_the_checks_catch_a_cycle_an_upward_import_and_an_engine_crossing():
     }
     modules = set(sources)
     edges = [imp for m, text in sources.items() for imp in imports_of(m, text, modules)]
-    assert Import("rsmcheck.runner", "numpy", 1, False) in edges
-    assert Import("rsmcheck.runner", "rsmcheck.params", 2, False) in edges  # `from pkg import module`
+    assert Import("rsmcheck.driver.runner", "numpy", 1, False) in edges
+    assert Import("rsmcheck.driver.runner", "rsmcheck.core.params", 2, False) in edges  # `from pkg import module`
     assert Import("rsmcheck.orchestration.compare", "rsmcheck.orchestration.gate", 2, True) in edges
 
-    assert cycles(modules, [e for e in edges if not e.deferred]) == [["rsmcheck.params", "rsmcheck.runner"]]
-    assert cycles(modules, edges) == [["rsmcheck.orchestration.compare", "rsmcheck.orchestration.gate"],
-                                      ["rsmcheck.params", "rsmcheck.runner"]]
+    assert cycles(modules, [e for e in edges if not e.deferred]) == [["rsmcheck.core.params", "rsmcheck.driver.runner"]]
+    assert cycles(modules, edges) == [["rsmcheck.core.params", "rsmcheck.driver.runner"],
+                                      ["rsmcheck.orchestration.compare", "rsmcheck.orchestration.gate"]]
     assert cycles({"a"}, [Import("a", "a", 1, False)]) == [["a"]]
 
     up = upward_imports(edges)
-    assert len(up) == 1 and up[0].startswith("rsmcheck.params:1 (floor) imports rsmcheck.runner (driver)")
+    assert len(up) == 1 and up[0].startswith("rsmcheck.core.params:1 (floor) imports rsmcheck.driver.runner (driver)")
 
     deferred = deferred_outside_engines(edges + imports_of("exudyn_model.engine", "def f():\n    import exudyn\n",
                                                           modules), allowed=set())

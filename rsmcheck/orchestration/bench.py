@@ -33,12 +33,12 @@ FILE` shows a stored document instead of running (`rsmcheck.orchestration.bench_
 the work (step attempts, Newton iterations) compares across machines, the wall time only
 on the same kind of machine.
 
-`machine` (`rsmcheck.store.machine`, the table's first line): the CPU model with its family,
+`machine` (`rsmcheck.core.store.machine`, the table's first line): the CPU model with its family,
 model and clock, logical CPUs, memory, operating system, Python and the numerical packages.
 Two machines of the project's 2-core kind, both calling their CPU "AMD EPYC", ran the same
 code's full mission 28 % (reference) and 42 % (Exudyn) apart, and the compiled RHS timing did
 not show it (2 %; benchmarks/README.md, "Recorded runs"): figures from two documents compare only when their machines do
-(`rsmcheck.store.same_machine`), and a recorded machine can tell two machines apart, not
+(`rsmcheck.core.store.same_machine`), and a recorded machine can tell two machines apart, not
 prove them alike (a shared host's load is not in the record).
 """
 
@@ -53,13 +53,13 @@ import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Any, Sequence
 
-from rsmcheck.cases import Case, list_cases, load_case
-from rsmcheck.errors import InputError
+from rsmcheck.core.cases import Case, list_cases, load_case
+from rsmcheck.core.errors import InputError
 from rsmcheck.orchestration.bench_diff import compare, diff_table, read_bench
 from rsmcheck.orchestration.targets import read_targets, targets_table
-from rsmcheck.params import Params
-from rsmcheck.runner import SPLIT
-from rsmcheck.store import dumps_json, git_commit, machine, machine_text, output_file, write_json
+from rsmcheck.core.params import Params
+from rsmcheck.driver.runner import SPLIT
+from rsmcheck.core.store import dumps_json, git_commit, machine, machine_text, output_file, write_json
 
 VARIANTS = ("short", "full")
 
@@ -68,8 +68,8 @@ import json, pathlib, resource, sys, tempfile, time
 from rsmcheck.orchestration.bench import SOLVER_KEYS, SPLIT_KEYS, bench_cases
 from rsmcheck.orchestration.chain import run_mission
 from rsmcheck.orchestration.engines import make_engine
-from rsmcheck.runner import run
-from rsmcheck.store import read_run
+from rsmcheck.driver.runner import run
+from rsmcheck.core.store import read_run
 name, engine_name, short = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
 case, first = bench_cases(name, short)
 run(make_engine(engine_name, first), first, min(0.01, first.duration))  # warm-up
@@ -90,7 +90,7 @@ print(json.dumps({"case": name, "engine": engine_name, "variant": "short" if sho
                               "wall_s": r[engine_name].solver["wall_s"]} for p, r in phases.items()]}))
 """
 
-#: what a run reports about where its wall time went (rsmcheck.runner.SPLIT, the engines'
+#: what a run reports about where its wall time went (rsmcheck.driver.runner.SPLIT, the engines'
 #: `wall_integrator_s`): the bench's second table, µs per control sample
 SPLIT_KEYS = ("samples", "wall_s", "wall_integrator_s", *(f"wall_{part}_s" for part in SPLIT))
 #: the engine settings and counts that decide a run's cost, stored beside its times so that

@@ -16,7 +16,7 @@ sees the last bits of the arithmetic) and 0.023 % (Exudyn).  So:
   identical code across machines) is a change of the work: a model, a setting or an
   integrator that costs more or less, on any machine;
 * wall times are compared only when both documents ran on the same kind of machine
-  (`rsmcheck.store.same_machine`); otherwise the ratio is left out, not printed with a
+  (`rsmcheck.core.store.same_machine`); otherwise the ratio is left out, not printed with a
   warning.  Even then two documents are two runs, minutes or days apart: benchmarks/README.md
   measured ±6 % between alternated runs and tens of per cent between sessions.
 
@@ -32,8 +32,8 @@ import os
 from pathlib import Path
 from typing import Any, Mapping
 
-from rsmcheck.errors import InputError
-from rsmcheck.store import machine_text, same_machine
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.store import machine_text, same_machine
 
 #: relative change of a count above which the work changed (module doc: 3 × the 0.31 % that
 #: identical code moved between two machines)

@@ -16,13 +16,13 @@ Every run of a case stores its end state next to its HDF5 file, `DIR/CASE.end.js
   (same model size); otherwise it starts from the rigid part with undeformed links (a
   reference with another number of modes, Exudyn with another element count).  Engines
   give and take their exact state through `export_state() -> dict` and
-  `import_state(dict) -> None` (rsmcheck.engine.Engine); this module never looks inside.
+  `import_state(dict) -> None` (rsmcheck.core.engine.Engine); this module never looks inside.
 
 A case with `start_from = "P"` starts from the end state of P written by the same engine
 (and the same variant: full or --short) — with --short not the first phase of the short
 mission (p2: p1's short variant does not set it up), which runs from its own [initial].
 When it enters an orbit the previous phase did not have (p3 → p4), O is placed on the
-case's circular orbit at the system COM (`rsmcheck.initial.place_on_orbit`), the same shift
+case's circular orbit at the system COM (`rsmcheck.driver.initial.place_on_orbit`), the same shift
 for the rigid and the exact state.
 
 The `mission` case runs its phases in sequence in memory, each phase starting from the
@@ -39,15 +39,15 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from rsmcheck.cases import Case, list_cases, load_case, sibling_case
-from rsmcheck.engine import Inputs
-from rsmcheck.errors import InputError
-from rsmcheck.geometry import rot
-from rsmcheck.initial import StartState
-from rsmcheck.observables import NAMES
+from rsmcheck.core.cases import Case, list_cases, load_case, sibling_case
+from rsmcheck.core.engine import Inputs
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.geometry import rot
+from rsmcheck.driver.initial import StartState
+from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.engines import make_engine
-from rsmcheck.runner import run
-from rsmcheck.store import EngineRun, Event, Phase, write_run, write_text
+from rsmcheck.driver.runner import run
+from rsmcheck.core.store import EngineRun, Event, Phase, write_run, write_text
 
 FORMAT = "rsmcheck-endstate"
 FORMAT_VERSION = 2

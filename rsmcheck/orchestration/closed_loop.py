@@ -3,8 +3,8 @@ both engines (p1_rigid_gains: docs/cases.md §3.2, §5; docs/exudyn.md §10).
 
 Each engine supplies its own continuous plant at rest in the case's initial configuration
 (orbit off): ẋ = A x + B u, y = C x (`modes.linear_plant` of each engine package, the same
-function in both: rsmcheck/engine.py).  The rest is the shared controller's laws
-(rsmcheck.controllers, physics.md §6), linearised about a hold of that configuration:
+function in both: rsmcheck/core/engine.py).  The rest is the shared controller's laws
+(rsmcheck.driver.controllers, physics.md §6), linearised about a hold of that configuration:
 
     r_k = (1 − α) r_{k−1} + α ψ̇_J(t_k)                 rate filter (a case option), α = 1 − e^{−2π f_c Δt}
                                                       (α = 1 without it: eq. 14 as written)
@@ -27,8 +27,8 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from rsmcheck.cases import at_rest, load_case, without_orbit
-from rsmcheck.controllers import ArmModel, measure
+from rsmcheck.core.cases import at_rest, load_case, without_orbit
+from rsmcheck.driver.controllers import ArmModel, measure
 
 N_INPUTS = 7  # τ_m1..6, τ_B
 #: y = [θ_J (6), θ̇_J (6), x, y, φ of end effector 1 and 2 in the base frame (6), θ_B, θ̇_B]

@@ -3,7 +3,7 @@
 `collect(folder)` fills one folder (default ``out/``):
 
 ===================  ===========================================================================
-``runs/CASE.h5``     every stand-alone case, both engines (rsmcheck.store format)
+``runs/CASE.h5``     every stand-alone case, both engines (rsmcheck.core.store format)
 ``runs/mission.h5``  the mission, its phases chained (rsmcheck.orchestration.chain.run_mission), both engines
 ``pinocchio.json``   the rows of ``rsmcheck pinocchio --json`` (rigid modes 0 and 2)
 ``modes.json``       the rows of ``rsmcheck modes --json`` (link and coupled frequencies)
@@ -36,13 +36,13 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from rsmcheck.cases import Case, list_cases, load_case, sibling_case
+from rsmcheck.core.cases import Case, list_cases, load_case, sibling_case
 from rsmcheck.orchestration.compare import case_rows, check_runs
 from rsmcheck.orchestration.engines import ENGINES
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.modes import modes_report
 from rsmcheck.orchestration.runs import Job, get_runs, read_stored, source_digest
-from rsmcheck.store import EngineRun, Event, Phase, git_commit, package_versions, write_json
+from rsmcheck.core.store import EngineRun, Event, Phase, git_commit, package_versions, write_json
 
 VERDICT = "verdict.json"
 PINOCCHIO = "pinocchio.json"

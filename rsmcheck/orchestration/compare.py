@@ -61,12 +61,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from rsmcheck.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
-from rsmcheck.errors import InputError
-from rsmcheck.observables import NAMES
+from rsmcheck.core.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.runs import get_runs
-from rsmcheck.store import EngineRun
-from rsmcheck.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
+from rsmcheck.core.store import EngineRun
+from rsmcheck.core.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
 
 
 #: observables that are Lagrange multipliers of the grasp constraints, and the events that
@@ -325,7 +325,7 @@ class Check(_Verdict):
 
 def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = False,
                specs: Sequence[Any] | None = None) -> list[Check]:
-    """Every entry of `case.compare` (a `rsmcheck.cases.Case`, the variant that was run), or
+    """Every entry of `case.compare` (a `rsmcheck.core.cases.Case`, the variant that was run), or
     of `specs` in its place.
 
     `chained`: the runs are a phase of a chained flight, each engine starting from its own

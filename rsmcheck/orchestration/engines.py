@@ -10,9 +10,9 @@ case's [initial] conditions, or — a case chained onto another's end state
 
 from __future__ import annotations
 
-from rsmcheck.cases import Case
-from rsmcheck.errors import InputError
-from rsmcheck.initial import StartState
+from rsmcheck.core.cases import Case
+from rsmcheck.core.errors import InputError
+from rsmcheck.driver.initial import StartState
 
 #: the simulation engines, in the order reports list them
 ENGINES = ("reference", "exudyn")

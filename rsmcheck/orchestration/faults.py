@@ -43,12 +43,12 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from rsmcheck.cases import Case, load_case
+from rsmcheck.core.cases import Case, load_case
 from rsmcheck.orchestration.compare import check_runs
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.runs import Job, expected_wall, run_engine, run_jobs
-from rsmcheck.runner import run
-from rsmcheck.store import EngineRun, git_commit, read_run, write_json, write_run
+from rsmcheck.driver.runner import run
+from rsmcheck.core.store import EngineRun, git_commit, read_run, write_json, write_run
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "data" / "faults.json"
@@ -123,10 +123,10 @@ FAULTS: tuple[Fault, ...] = (
           "limitStopsStiffness=w.stiffness,", "limitStopsStiffness=0.5 * w.stiffness,",
           "Exudyn: wrist bistop stiffness halved"),
     # ---- shared inputs: both engines move together -------------------------------------
-    Fault("params_link_mass", "shared", "rsmcheck/params.py",
+    Fault("params_link_mass", "shared", "rsmcheck/core/params.py",
           'mass: float = _p(36.49, "Table 1.")', 'mass: float = _p(36.59, "Table 1.")',
           "parameter set: link mass 36.59 kg instead of 36.49 kg (Table 1 typo)"),
-    Fault("controller_rate_filter", "shared", "rsmcheck/controllers.py",
+    Fault("controller_rate_filter", "shared", "rsmcheck/driver/controllers.py",
           "alpha = 1.0 - math.exp(-2.0 * math.pi * fc * dt) if fc > 0 else 1.0",
           "alpha = 1.0 - math.exp(-math.pi * fc * dt) if fc > 0 else 1.0",
           "controller: the rate filter's corner at f_c/2 (ω = π f_c instead of 2π f_c)"),

@@ -5,7 +5,7 @@ parameter, a controller, a case file, the initial-state solver), and its toleran
 set by the engines' modelling differences.  The gate compares each engine with *itself*
 as it was when the golden was blessed, at the level of reproducibility (docs/gate.md):
 
-* A golden (`goldens/CASE.ENGINE.h5`) is an ordinary run file (rsmcheck.store) holding
+* A golden (`goldens/CASE.ENGINE.h5`) is an ordinary run file (rsmcheck.core.store) holding
   every observable at at most `MAX_SAMPLES` evenly strided samples of the short run, all
   events and phases, and as root attributes its provenance (case-file hash, parameter
   hash, commit, package versions, platform, when and why it was blessed) and its gate
@@ -46,12 +46,12 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from rsmcheck.cases import first_given, list_cases, load_case
-from rsmcheck.errors import InputError
-from rsmcheck.observables import NAMES
+from rsmcheck.core.cases import first_given, list_cases, load_case
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.runs import GOLDEN_DIR, Job, expected_wall, get_runs, golden_path, run_engine, run_jobs
-from rsmcheck.params import Params
-from rsmcheck.store import EngineRun, git_commit, read_run, write_run, write_text
+from rsmcheck.core.params import Params
+from rsmcheck.core.store import EngineRun, git_commit, read_run, write_run, write_text
 
 CHANGELOG = "CHANGELOG.md"
 GOLDEN_SCHEMA = 1

@@ -3,8 +3,8 @@
 Links (one link, basis PP = pinned-pinned, PF = pinned-free, modes 1–2):
 
 * analytic: Euler–Bernoulli, f_j = (β_j L)² sqrt(EI/ρA) / (2π L²), with EI derived from
-  Table 2's PP f1 (docs/physics.md §2; `rsmcheck.params`), βL = jπ (PP) or the roots of
-  tan βL = tanh βL (PF), from `rsmcheck.beams`;
+  Table 2's PP f1 (docs/physics.md §2; `rsmcheck.core.params`), βL = jπ (PP) or the roots of
+  tan βL = tanh βL (PF), from `rsmcheck.core.beams`;
 * reference: the generalised eigenvalues of the reference's modal stiffness and mass
   matrices K_ff, M_ff (`reference_model.beam_modes.modal_basis`, quadrature of the scaled
   shapes: it checks the shapes and integrals the reference simulates with);
@@ -13,7 +13,7 @@ Links (one link, basis PP = pinned-pinned, PF = pinned-free, modes 1–2):
 
 Arms (the whole robot linearised at rest in a case's initial configuration, undamped,
 orbit off): each engine's `modes.coupled_frequencies` (the same function in both packages,
-rsmcheck/engine.py) — the reference's ODE linearised by central differences of its
+rsmcheck/core/engine.py) — the reference's ODE linearised by central differences of its
 right-hand side (the oscillatory eigenvalues; Baumgarte's real ones drop out), against
 Exudyn's eigenvalues of its own M, K on the constraint null space.  The Exudyn numbers come
 from Exudyn alone.
@@ -27,9 +27,9 @@ from typing import Any, Sequence
 import numpy as np
 from scipy.linalg import eigh
 
-from rsmcheck.beams import analytic_frequencies
-from rsmcheck.cases import at_rest, load_case, undamped, without_orbit
-from rsmcheck.params import TABLE2_HZ, Params
+from rsmcheck.core.beams import analytic_frequencies
+from rsmcheck.core.cases import at_rest, load_case, undamped, without_orbit
+from rsmcheck.core.params import TABLE2_HZ, Params
 
 #: (name, case, what it is) of the configurations `rsmcheck modes` linearises
 CONFIGURATIONS = (

@@ -1,6 +1,6 @@
 """Engine runs: the one producer and reader of runs, and the one worker pool.
 
-Runs flow one way: engines → run files (rsmcheck.store) → `get_runs` → the comparisons.
+Runs flow one way: engines → run files (rsmcheck.core.store) → `get_runs` → the comparisons.
 `rsmcheck check` (through `compare.check_cases`), `rsmcheck gate` (`gate.gate`) and the
 report (`collect.collect`) all ask `get_runs` for the runs of a list of cases, engines and
 a variant (short or full):
@@ -33,12 +33,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from rsmcheck.cases import Case, load_case, sibling_case
-from rsmcheck.errors import InputError, SimulationDiverged
+from rsmcheck.core.cases import Case, load_case, sibling_case
+from rsmcheck.core.errors import InputError, SimulationDiverged
 from rsmcheck.orchestration.chain import run_mission
 from rsmcheck.orchestration.engines import ENGINES, make_engine
-from rsmcheck.runner import run
-from rsmcheck.store import EngineRun, read_run, write_run
+from rsmcheck.driver.runner import run
+from rsmcheck.core.store import EngineRun, read_run, write_run
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the gate's golden runs (rsmcheck.orchestration.gate), one file per case and engine

@@ -43,13 +43,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from rsmcheck.cases import OrbitSpec, load_case
-from rsmcheck.errors import exit_code
-from rsmcheck.observables import NAMES
+from rsmcheck.core.cases import OrbitSpec, load_case
+from rsmcheck.core.errors import exit_code
+from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.compare import SCALE_FLOORS, check_runs, compare_runs
 from rsmcheck.orchestration.engines import make_engine
-from rsmcheck.runner import run
-from rsmcheck.store import read_run, write_json
+from rsmcheck.driver.runner import run
+from rsmcheck.core.store import read_run, write_json
 
 DATA_DIR = Path(__file__).resolve().parents[2] / "docs" / "data"
 FEATURE_CASES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", "capture", "release",

@@ -16,7 +16,7 @@ for an upper bound, measured / bound for a lower one; 0.13 says "7.6 times too s
 
 A wall-time reading also has a *floor*: the part of that wall the engine's own integrator
 took (the reference's compiled DP5 and IMEX, Exudyn's `SolveSteps`; the runs' `split`,
-rsmcheck.runner).  Its margin, bound / floor, is the target's margin if the loop around
+rsmcheck.driver.runner).  Its margin, bound / floor, is the target's margin if the loop around
 the engine (sensors, controller, held inputs, output samples) cost nothing: below 1, no
 work on that loop can meet the target, only fewer or cheaper integration steps can.
 """

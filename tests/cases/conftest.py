@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 
 
 @pytest.fixture

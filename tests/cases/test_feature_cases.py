@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import list_cases, load_case
-from rsmcheck.orbit import rocket_mass
-from rsmcheck.runner import run
+from rsmcheck.core.cases import list_cases, load_case
+from rsmcheck.core.orbit import rocket_mass
+from rsmcheck.driver.runner import run
 
 FEATURES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", "capture", "release",
             "wrist_bistop", "gravity_gradient", "thrust_burn")

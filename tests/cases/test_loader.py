@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from rsmcheck.cases import ExudynSettings, ReferenceSettings, load_case
-from rsmcheck.errors import InputError
+from rsmcheck.core.cases import ExudynSettings, ReferenceSettings, load_case
+from rsmcheck.core.errors import InputError
 
 VALID = """\
 name = "{name}"

@@ -9,12 +9,12 @@ import textwrap
 import numpy as np
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.chain import end_state_path, load_end_state, run_case, start_of
 from rsmcheck.orchestration.engines import make_engine
-from rsmcheck.errors import InputError
-from rsmcheck.initial import build_initial
-from rsmcheck.store import read_run
+from rsmcheck.core.errors import InputError
+from rsmcheck.driver.initial import build_initial
+from rsmcheck.core.store import read_run
 
 GAINS = """
 [controller]
@@ -172,7 +172,7 @@ def test_sequence_case_runs_the_phases_with_continuous_time(chain_dir):
 
 
 def test_orbit_start_puts_o_at_the_com_with_the_thrust_retrograde():
-    from rsmcheck.initial import rigid_com
+    from rsmcheck.driver.initial import rigid_com
 
     case = load_case("thrust_burn")
     init = build_initial(case)

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.cli import main
-from rsmcheck.errors import InputError
+from rsmcheck.core.errors import InputError
 
 PROGRAMME = """
 name = "{name}"
@@ -225,7 +225,7 @@ def test_segment_control_period_not_longer_than_the_segment(tmp_path):
 def test_runner_follows_segment_control_periods(tmp_path):
     """A quiet segment may sample more slowly; the boundaries are hit exactly."""
     from reference_model.engine import ReferenceEngine
-    from rsmcheck.runner import run
+    from rsmcheck.driver.runner import run
 
     text = PROGRAMME.format(name="cp", top="", initial="", controller="",
                             segment="", rest="control_period = 0.015")

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import load_case
-from rsmcheck.orbit import (
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.orbit import (
     burn_time,
     circular_state,
     finite_hohmann,
@@ -24,9 +24,9 @@ from rsmcheck.orbit import (
     rocket_mass,
     system_mass,
 )
-from rsmcheck.params import Params
-from rsmcheck.runner import run
-from rsmcheck.store import Event, Phase
+from rsmcheck.core.params import Params
+from rsmcheck.driver.runner import run
+from rsmcheck.core.store import Event, Phase
 
 
 FIG6 = pytest.mark.engine_runs(("p1_transport", "reference", True, ()), ("p1_rigid_gains", "reference", True, ()))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from rsmcheck.cases import list_cases, load_case
+from rsmcheck.core.cases import list_cases, load_case
 
 #: the largest rtol at which the reference's reaction forces are quiet enough to compare:
 #: over p2's full hold their sample-to-sample noise is 2.4e-3 N at most at 1e-7 (above the

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import pytest
 
-from rsmcheck.cases import list_cases, load_case
+from rsmcheck.core.cases import list_cases, load_case
 from rsmcheck.orchestration.compare import check_runs
 
 #: (case, observable) -> why it cannot pass at the case's tolerance, with the measured size

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.closed_loop import analyse
 
 

@@ -25,8 +25,8 @@ import math
 import numpy as np
 import pytest
 
-from rsmcheck.cases import load_case
-from rsmcheck.engine import Inputs
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.engine import Inputs
 
 TORQUES = np.array([5.0, -10.0, 5.0, -5.0, 10.0, -5.0])
 RAMP = 0.2

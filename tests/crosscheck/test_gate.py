@@ -18,7 +18,7 @@ CASES = [c.name for c in gated_cases()]
 @pytest.mark.parametrize("case_name", [pytest.param(n, marks=pytest.mark.engine_runs(
     (n, "reference", True, ()), (n, "exudyn", True, ()))) for n in CASES])
 def test_run_matches_its_golden(case_name, engine, run_pool):
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
 
     case = load_case(case_name).variant(True)
     golden = read_golden(golden_path(case_name, engine), engine)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import pytest
 
 from rsmcheck.orchestration.compare import compare_runs
-from rsmcheck.observables import NAMES
+from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.studies import RIGID_REFERENCE, RIGID_SUBSTEPS, RIGID_TOLERANCE, rigid_options
 
 OBSERVABLES = [n for n in NAMES if n != "time"]

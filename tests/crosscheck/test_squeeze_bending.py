@@ -29,10 +29,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rsmcheck.cases import load_case
-from rsmcheck.geometry import rigid_arm
-from rsmcheck.initial import build_initial
-from rsmcheck.params import Params
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.geometry import rigid_arm
+from rsmcheck.driver.initial import build_initial
+from rsmcheck.core.params import Params
 
 CASE = """
 description = "closed chain squeezed by ramped torques: quasi-static link bending"
@@ -121,7 +121,7 @@ def _errors(obs):
 @pytest.mark.crosscheck
 @pytest.mark.parametrize("engine", ["reference_paper_modes", "reference", "exudyn"])
 def test_squeezed_links_bend_as_beam_theory(case, engine):
-    from rsmcheck.runner import run
+    from rsmcheck.driver.runner import run
 
     if engine == "exudyn":
         from exudyn_model.engine import ExudynEngine

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from rsmcheck.orchestration import chain
-from rsmcheck.cases import load_case
-from rsmcheck.engine import Inputs
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.engine import Inputs
 from rsmcheck.orchestration.engines import make_engine
-from rsmcheck.runner import run
+from rsmcheck.driver.runner import run
 
 RELATIVE = ("target_pose_B", "ee1_pos_B", "ee2_pos_B", "capture_gap_B", "com_pos_B", "joint_angles",
             "motor_angles", "link_deflection", "grasp_state", "constraint_residual")
@@ -46,7 +46,7 @@ def test_import_continues_the_deformed_state():
 def test_rigid_start_takes_spring_twists_and_propellant():
     """From the rigid part alone the links start undeformed at the frame angles θ_J and each
     joint spring keeps its twist θ_m − ψ_J (and its rate), so the joints carry on with their
-    torques (rsmcheck.initial: the rotors are shifted by the bend θ_J − ψ_J)."""
+    torques (rsmcheck.driver.initial: the rotors are shifted by the bend θ_J − ψ_J)."""
     def drop_exact(state):
         state["exact"] = None
         state["rigid"]["m_used"] = 2.5

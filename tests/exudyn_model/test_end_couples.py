@@ -17,7 +17,7 @@ from __future__ import annotations
 import pytest
 
 from exudyn_model.links import static_end_couples
-from rsmcheck.params import Params
+from rsmcheck.core.params import Params
 
 PARAMS = Params()
 L, EI = PARAMS.link.length, PARAMS.link.ei

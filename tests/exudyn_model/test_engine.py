@@ -1,6 +1,6 @@
 """The Exudyn engine: construction, link frames, and comparisons with the reference.
 
-Unit tests check the model against its own definitions (initial state = rsmcheck.initial,
+Unit tests check the model against its own definitions (initial state = rsmcheck.driver.initial,
 frames of docs/physics.md §2.1).  `crosscheck` tests run both engines through the shared
 sampled-data loop and compare every observable with `rsmcheck.orchestration.compare` (scale = max of the
 reference, with the physical floors of `SCALE_FLOORS`).  The tolerances are the measured
@@ -26,14 +26,14 @@ import numpy as np
 import pytest
 
 from exudyn_model.engine import ExudynEngine
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.compare import compare_runs
-from rsmcheck.engine import Inputs
-from rsmcheck.errors import SimulationDiverged
-from rsmcheck.geometry import rigid_arm
-from rsmcheck.initial import build_initial
-from rsmcheck.observables import NAMES
-from rsmcheck.runner import run
+from rsmcheck.core.engine import Inputs
+from rsmcheck.core.errors import SimulationDiverged
+from rsmcheck.core.geometry import rigid_arm
+from rsmcheck.driver.initial import build_initial
+from rsmcheck.core.observables import NAMES
+from rsmcheck.driver.runner import run
 
 ALL = [n for n in NAMES if n != "time"]
 

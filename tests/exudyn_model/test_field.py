@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from exudyn_model.engine import ExudynEngine
-from rsmcheck.cases import load_case
-from rsmcheck.engine import Inputs
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.engine import Inputs
 
 #: nodes of the 8-point Gauss–Legendre rule on [0, 1] (the period's mean field)
 _XS, _WS = np.polynomial.legendre.leggauss(8)
@@ -153,7 +153,7 @@ def test_the_stored_mass_matrix_follows_the_burning_base(monkeypatch):
     residual.  Without the recomputation in `_set_base_mass` the stored matrix keeps the
     base's mass at build and the runs part (the base pose by 9.6e-10 after 50 ms)."""
     from exudyn_model.build import BuildMixin
-    from rsmcheck.runner import run
+    from rsmcheck.driver.runner import run
 
     case = load_case("thrust_burn").variant(True)
     stored = run(ExudynEngine(case), case, 0.05)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from exudyn_model import links
-from rsmcheck.beams import analytic_frequencies
-from rsmcheck.params import TABLE2_HZ, Params
+from rsmcheck.core.beams import analytic_frequencies
+from rsmcheck.core.params import TABLE2_HZ, Params
 
 
 @pytest.mark.parametrize("basis", ["PP", "PF"])

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from exudyn_model.modes import at_rest_undamped, coupled_frequencies
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 
 pytestmark = pytest.mark.crosscheck
 

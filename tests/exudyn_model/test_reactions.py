@@ -23,10 +23,10 @@ from exudyn_model import reactions
 from exudyn_model.build import exu
 from exudyn_model.engine import ExudynEngine
 from exudyn_model.reactions import ConstraintForces
-from rsmcheck.cases import load_case
-from rsmcheck.engine import Inputs
-from rsmcheck.geometry import rot
-from rsmcheck.runner import run
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.engine import Inputs
+from rsmcheck.core.geometry import rot
+from rsmcheck.driver.runner import run
 from exudyn.itemInterface import (  # noqa: E402 — after the engine's import of exudyn
     CoordinateSpringDamper, LoadForceVector, LoadTorqueVector, MarkerBodyPosition, MarkerBodyRigid,
     MarkerNodeCoordinate, NodePointGround, NodeRigidBody2D, ObjectGround, ObjectJointRevolute2D,

@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 from pinocchio_check import compare
-from rsmcheck.params import Params
+from rsmcheck.core.params import Params
 
 pytest.importorskip("reference_model.build")
 

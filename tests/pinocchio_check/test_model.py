@@ -29,8 +29,8 @@ from pinocchio_check.model import (
     mass_matrix_y,
     point_kinematics_y,
 )
-from rsmcheck.geometry import rot
-from rsmcheck.params import Params
+from rsmcheck.core.geometry import rot
+from rsmcheck.core.params import Params
 
 PARAMS = Params()
 SEEDS = range(8)

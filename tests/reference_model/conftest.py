@@ -9,7 +9,7 @@ from typing import Callable
 
 import pytest
 
-from rsmcheck.cases import Case, load_case
+from rsmcheck.core.cases import Case, load_case
 
 
 @pytest.fixture

@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import load_case
-from rsmcheck.engine import Inputs
-from rsmcheck.runner import run
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.engine import Inputs
+from rsmcheck.driver.runner import run
 
 ENERGY_REL_TOL = 2e-7
 MOMENTUM_REL_TOL = 1e-9
@@ -64,7 +64,7 @@ def test_energy_conserved_closed_chain_flexible(make_case):
     engine = ReferenceEngine(case)
     lay = engine.model.layout
     assert list(engine.cfg.grasp_on) == [1, 1]
-    # arm 2's rates were solved by rsmcheck.initial so that the chain is closed and moving
+    # arm 2's rates were solved by rsmcheck.driver.initial so that the chain is closed and moving
     assert np.abs(engine.x[lay.ns + 6:lay.ns + 9]).max() > 1e-4
     # links vibrating in their eigenmodes (≈2 µm, ≈0.4 mm/s; the static correction shapes
     # start at rest, the coupling sets them going) and rotors off their joints: every

@@ -8,7 +8,7 @@ import pytest
 
 from reference_model import core
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 
 
 def _random_state(name: str, seed: int, **options) -> tuple[ReferenceEngine, np.ndarray, np.ndarray]:

@@ -29,7 +29,7 @@ from reference_model import core
 from reference_model.beam_modes import PF, PP, modal_basis
 from reference_model.build import Configuration, ReferenceModel, terminal_basis
 from reference_model.observe import energy_of_state
-from rsmcheck.params import Params
+from rsmcheck.core.params import Params
 
 LINK = Params().link
 L, EI = LINK.length, LINK.ei

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from reference_model.engine import H_MAX, ReferenceEngine
-from rsmcheck.engine import Inputs
+from rsmcheck.core.engine import Inputs
 
 RIPPLE = """
 description = "rigid robot at rest, undamped rotors: a tiny torque pulse rings the 92 Hz rotor modes"

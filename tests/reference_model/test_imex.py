@@ -21,9 +21,9 @@ import pytest
 from reference_model import imex
 from reference_model.beam_modes import PF, PP
 from reference_model.engine import ReferenceEngine
-from rsmcheck import runner
-from rsmcheck.cases import load_case
-from rsmcheck.engine import Inputs
+from rsmcheck.driver import runner
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.engine import Inputs
 
 A_E, A_I, B, B_HAT, C = imex._AE, imex._AI, imex._B, imex._BHAT, imex._C
 

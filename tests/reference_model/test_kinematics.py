@@ -22,7 +22,7 @@ import pytest
 from reference_model import core
 from reference_model.beam_modes import PF
 from reference_model.build import Configuration, ReferenceModel, terminal_basis
-from rsmcheck.params import Params
+from rsmcheck.core.params import Params
 
 JDOT_REL_TOL = 1e-6
 J_REL_TOL = 1e-6
@@ -214,7 +214,7 @@ def test_velocity_forces_are_lagranges_from_the_mass_matrix():
     centrifugal and Coriolis incl. the modal ones) equals −h with Lagrange's
     h = Ṁ Ẏ − ½ ∂(ẎᵀMẎ)/∂Y, all derivatives of M_g by central differences.
     Damping off (η = 0, C_m = 0) so f(Y, Ẏ) − f(Y, 0) is purely inertial."""
-    from rsmcheck.params import Params as P
+    from rsmcheck.core.params import Params as P
 
     prm = P.from_overrides({"link": {"damping_ratio": 0.0}, "motor": {"damping": 0.0}}, "test")
     mdl = ReferenceModel(prm, (2, 3, 2, 1, 2, 4))

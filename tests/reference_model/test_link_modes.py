@@ -25,7 +25,7 @@ from scipy.linalg import eigh
 from reference_model import core
 from reference_model.beam_modes import PF, PP, beta_l
 from reference_model.build import Configuration, ReferenceModel
-from rsmcheck.params import TABLE2_HZ, Params
+from rsmcheck.core.params import TABLE2_HZ, Params
 
 TABLE2_REL_TOL = 5e-4  # 0.05 %
 

@@ -138,7 +138,7 @@ def test_generalised_tidal_forces_derive_from_the_energy_observable():
     from reference_model import core
     from reference_model.build import Configuration, ReferenceModel, terminal_basis
     from reference_model.observe import energy_of_state
-    from rsmcheck.params import Params
+    from rsmcheck.core.params import Params
 
     model = ReferenceModel(Params(), 2, orbit=True)
     lay = model.layout

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from reference_model.engine import ReferenceEngine
-from rsmcheck.engine import Inputs
+from rsmcheck.core.engine import Inputs
 
 QUIET_ORBIT = """
 description = "closed chain at rest in orbit: only the tidal field moves it"

@@ -31,11 +31,11 @@ class Rendered:
 @pytest.fixture(scope="session")
 def rendered(run_pool, tmp_path_factory) -> Rendered:
     from pinocchio_check.compare import run_checks
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
     from rsmcheck.orchestration.collect import Collected, run_dir, verdict
     from rsmcheck.orchestration.runs import source_digest, store_runs
     from rsmcheck.report.build import render
-    from rsmcheck.store import write_json
+    from rsmcheck.core.store import write_json
 
     folder = tmp_path_factory.mktemp("report")
     digest = source_digest()

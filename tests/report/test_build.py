@@ -22,7 +22,7 @@ def test_every_section_is_on_the_page(rendered):
 def test_cross_check_rows_are_those_of_rsmcheck_check(rendered):
     """The verdict's cross-check rows are `check_runs` on the same runs, row for row (what
     `rsmcheck check --json` prints), and each is in the page's verdict table."""
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
 
     expected = []
     for name in ("free_drift", "p1_rigid_gains"):
@@ -58,7 +58,7 @@ def test_failures_come_first_then_the_smallest_margin():
 def test_the_mission_has_a_section_per_phase(rendered):
     """The short mission (p2 → p5) on the shared time axis, one section per phase; with one
     engine there is nothing to compare, and the page says so in red."""
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
 
     phases = load_case("mission").variant(True).phases
     for ph in phases:

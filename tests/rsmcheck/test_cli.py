@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from rsmcheck.cli import main
-from rsmcheck.observables import NAMES
-from rsmcheck.store import read_run
+from rsmcheck.core.observables import NAMES
+from rsmcheck.core.store import read_run
 
 GOOD = """\
 name = "{name}"
@@ -123,7 +123,7 @@ def test_cases_lists_the_shipped_cases(capsys):
     lines = captured.out.splitlines()
     names = {line.split()[0] for line in lines if line.strip()}
     assert {"free_drift", "closed_squeeze"} <= names
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
 
     for name in ("free_drift", "closed_squeeze"):
         line = next(ln for ln in lines if ln.split()[0] == name)
@@ -141,7 +141,7 @@ def test_run_free_drift_short_writes_a_readable_run_file(tmp_path, capsys):
     assert sorted(p.name for p in files_under(out)) == ["free_drift.h5", "free_drift.short.end.json"]
     runs, attrs = read_run(path)
     assert attrs["case_name"] == "free_drift"
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
 
     case = load_case("free_drift")
     assert attrs["case_hash"] == case.file_hash
@@ -193,7 +193,7 @@ def test_closed_pipe_ends_quietly(argv, buffered):
 
 def test_cases_into_head_1():
     """`rsmcheck cases | head -1`: the first line arrives, then the command ends quietly."""
-    from rsmcheck.cases import list_cases
+    from rsmcheck.core.cases import list_cases
 
     code, first, err = _closed_pipe_run(["cases"], buffered=False, read_first_line=True)
     assert first.split() and first.split()[0].decode() in {p.stem for p in list_cases()}
@@ -203,7 +203,7 @@ def test_cases_into_head_1():
 def test_exit_code_of_a_command_cut_short(capsys):
     """A command that had not finished when its reader left exits `cut_short` (1: not all
     done, so not 'all good'; 0 for a listing); one that had finished keeps its own code."""
-    from rsmcheck.errors import exit_code
+    from rsmcheck.core.errors import exit_code
 
     def cut():
         raise BrokenPipeError(32, "Broken pipe")
@@ -218,7 +218,7 @@ def test_exit_code_of_a_command_cut_short(capsys):
         def fileno(self):
             raise OSError("no descriptor")
 
-    import rsmcheck.errors as errors
+    import rsmcheck.core.errors as errors
 
     real = sys.stdout
     try:
@@ -290,7 +290,7 @@ NAN, INF = float("nan"), float("inf")
 
 
 def test_dumps_json_is_strict():
-    from rsmcheck.store import dumps_json
+    from rsmcheck.core.store import dumps_json
 
     doc = {"a": NAN, "b": INF, "c": -INF, "d": [np.float64(NAN), np.float32(1.5), np.int64(3)],
            "e": np.array([1.0, INF]), "f": (True, None, "x"), "g": {"h": np.bool_(True)}}
@@ -301,7 +301,7 @@ def test_dumps_json_is_strict():
 
 
 def test_write_json_is_strict(tmp_path):
-    from rsmcheck.store import write_json
+    from rsmcheck.core.store import write_json
 
     path = write_json(tmp_path / "x.json", {"wall_s": NAN, "margin": INF})
     assert strict_loads(path.read_text()) == {"wall_s": None, "margin": "inf"}

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from rsmcheck.cases import ArmGains, BaseGains, ControllerSpec, Segment, TargetCommand
-from rsmcheck.controllers import (
+from rsmcheck.core.cases import ArmGains, BaseGains, ControllerSpec, Segment, TargetCommand
+from rsmcheck.driver.controllers import (
     ArmModel,
     ComAlignment,
     ProgrammeController,
@@ -21,9 +21,9 @@ from rsmcheck.controllers import (
     saturate,
     wrap_near,
 )
-from rsmcheck.engine import Inputs, Sensors
-from rsmcheck.params import Params
-from rsmcheck.trajectories import PEAK_ACCEL, PEAK_SPEED, Quintic, quintic
+from rsmcheck.core.engine import Inputs, Sensors
+from rsmcheck.core.params import Params
+from rsmcheck.core.trajectories import PEAK_ACCEL, PEAK_SPEED, Quintic, quintic
 
 P = Params()
 
@@ -183,7 +183,7 @@ def test_thrust_segment_and_freeze():
     s0 = sensors()
     ctl.start(s0)
     q = np.radians([61.0, -120.0, 60.0, -60.0, 120.0, -60.0])
-    from rsmcheck.cases import ArmCommand
+    from rsmcheck.core.cases import ArmCommand
 
     ctl.enter(Segment(name="burn", duration=10.0, thrust=True, arm1=ArmCommand(mode="freeze"),
                       arm2=ArmCommand(mode="hold")), sensors(q=q))

@@ -20,9 +20,9 @@ from scipy.linalg import expm
 
 from reference_model import core
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import Segment, load_case
-from rsmcheck.cases import at_rest, without_orbit
-from rsmcheck.controllers import ProgrammeController
+from rsmcheck.core.cases import Segment, load_case
+from rsmcheck.core.cases import at_rest, without_orbit
+from rsmcheck.driver.controllers import ProgrammeController
 
 #: the hold configuration of p1: arm 1 at (4.0, 0.6) m, φ = 0 holding the target, arm 2 at
 #: (3.8, −0.6) m, φ = 0 (prepared for capture)

@@ -1,4 +1,4 @@
-"""The engine packages' functions beyond the Engine object (rsmcheck/engine.py): each
+"""The engine packages' functions beyond the Engine object (rsmcheck/core/engine.py): each
 package offers the same functions with the same signatures, so shared code asks both the
 same way and never reads an engine's internals."""
 
@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 
 PACKAGES = ("reference_model", "exudyn_model")
 FUNCTIONS = (("modes", "linear_plant"), ("modes", "coupled_frequencies"), ("stepping", "rhs_timing"))

@@ -1,8 +1,8 @@
-"""rsmcheck.errors: the exceptions keep their fields across processes (pickling)."""
+"""rsmcheck.core.errors: the exceptions keep their fields across processes (pickling)."""
 
 import pickle
 
-from rsmcheck.errors import InputError, SimulationDiverged
+from rsmcheck.core.errors import InputError, SimulationDiverged
 
 
 def test_input_error_pickles_with_its_fields():

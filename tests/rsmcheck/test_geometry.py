@@ -1,4 +1,4 @@
-"""rsmcheck.geometry (rotation, rigid three-link arm) and rsmcheck.beams (analytic link
+"""rsmcheck.core.geometry (rotation, rigid three-link arm) and rsmcheck.core.beams (analytic link
 frequencies): the shared helpers against first principles."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from rsmcheck.beams import analytic_frequencies, beta_l
-from rsmcheck.geometry import arm_jacobian, arm_pins, rigid_arm, rot
-from rsmcheck.params import TABLE2_HZ, Params
+from rsmcheck.core.beams import analytic_frequencies, beta_l
+from rsmcheck.core.geometry import arm_jacobian, arm_pins, rigid_arm, rot
+from rsmcheck.core.params import TABLE2_HZ, Params
 
 P = Params()
 
@@ -64,7 +64,7 @@ def test_beam_roots_and_frequencies():
         b = beta_l("PF", j)
         assert abs(math.tan(b) - math.tanh(b)) < 1e-12 and (j + 0.25) * math.pi - 1e-3 < b < (j + 0.25) * math.pi
     assert f"{beta_l('PF', 1):.5f}" == "3.92660" and f"{beta_l('PF', 2):.5f}" == "7.06858"
-    # EI is derived from Table 2's first PP frequency (rsmcheck.params): f1 comes back
+    # EI is derived from Table 2's first PP frequency (rsmcheck.core.params): f1 comes back
     assert analytic_frequencies(P.link, "PP", 1)[0] == pytest.approx(TABLE2_HZ["PP"][0], rel=1e-12)
     f = analytic_frequencies(P.link, "PF", 3)
     assert f.shape == (3,) and np.all(np.diff(f) > 0)

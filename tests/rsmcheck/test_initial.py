@@ -1,4 +1,4 @@
-"""Initial conditions shared by the engines (rsmcheck.initial): the target pose from the
+"""Initial conditions shared by the engines (rsmcheck.driver.initial): the target pose from the
 holding arm and the wrist angle, arm 2 closed onto grasp point 2 (positions and rates),
 the orbit start, and clear errors for an impossible closure.
 
@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rsmcheck.cases import load_case
-from rsmcheck.errors import InputError
-from rsmcheck.geometry import rigid_arm, rot
-from rsmcheck.initial import build_initial
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.geometry import rigid_arm, rot
+from rsmcheck.driver.initial import build_initial
 
 CLOSED = """\
 name = "{name}"

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rsmcheck.observables import (
+from rsmcheck.core.observables import (
     BY_NAME,
     NAMES,
     OBSERVABLES,

@@ -9,8 +9,8 @@ import math
 
 import pytest
 
-from rsmcheck.errors import InputError
-from rsmcheck.params import TABLE2_HZ, Params
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.params import TABLE2_HZ, Params
 
 WHERE = "cases/some_case.toml"
 
@@ -124,7 +124,7 @@ def test_overrides_must_be_a_table():
 
 
 def test_direct_construction_is_validated_too():
-    from rsmcheck.params import LinkParams, RigidBodyParams
+    from rsmcheck.core.params import LinkParams, RigidBodyParams
 
     with pytest.raises(InputError) as info:
         Params(base=RigidBodyParams(mass=-1.0))

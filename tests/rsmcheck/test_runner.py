@@ -1,11 +1,11 @@
-"""rsmcheck.runner: what the sampled-data loop writes into its events."""
+"""rsmcheck.driver.runner: what the sampled-data loop writes into its events."""
 
 from __future__ import annotations
 
 import pytest
 
-from rsmcheck.runner import _detail
-from rsmcheck.store import Event
+from rsmcheck.driver.runner import _detail
+from rsmcheck.core.store import Event
 
 
 def test_an_exact_zero_is_a_measured_value_not_an_identity():
@@ -22,9 +22,9 @@ def test_a_run_reports_where_its_wall_time_went():
     (`wall_integrator_s`, part of `advance`) add up to no more than the run's wall time, and
     `rsmcheck bench` turns them into µs per control sample that sum to it."""
     from reference_model.engine import ReferenceEngine
-    from rsmcheck.cases import load_case
+    from rsmcheck.core.cases import load_case
     from rsmcheck.orchestration.bench import SPLIT_KEYS, per_sample_us
-    from rsmcheck.runner import SPLIT, run
+    from rsmcheck.driver.runner import SPLIT, run
 
     case = load_case("free_drift")
     solver = run(ReferenceEngine(case), case, 0.05).solver

@@ -12,10 +12,10 @@ import h5py
 import numpy as np
 import pytest
 
-from rsmcheck import store
-from rsmcheck.errors import InputError
-from rsmcheck.observables import NAMES, OBSERVABLES
-from rsmcheck.store import EngineRun, Event, Phase, read_run, write_run
+from rsmcheck.core import store
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.observables import NAMES, OBSERVABLES
+from rsmcheck.core.store import EngineRun, Event, Phase, read_run, write_run
 
 
 def make_run(engine: str, n: int = 20, seed: int = 0) -> EngineRun:

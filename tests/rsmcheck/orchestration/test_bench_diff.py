@@ -7,7 +7,7 @@ import json
 import pytest
 
 from rsmcheck.cli import main as cli
-from rsmcheck.errors import InputError
+from rsmcheck.core.errors import InputError
 from rsmcheck.orchestration.bench import SOLVER_KEYS
 from rsmcheck.orchestration.bench import main as bench
 from rsmcheck.orchestration.bench_diff import COUNT_KEYS, SETTING_KEYS, compare, diff_table, read_bench

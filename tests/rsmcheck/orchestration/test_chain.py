@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from rsmcheck.observables import NAMES
+from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.chain import _concatenate
-from rsmcheck.store import EngineRun
+from rsmcheck.core.store import EngineRun
 
 
 def _phase(duration: float, solver: dict) -> EngineRun:

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.closed_loop import (I_BASE, N_INPUTS, closed_loop_exponents, controller_gains,
                                                 rotor_modes)
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.collect import mission_checks, phase_runs, phase_specs
 from rsmcheck.orchestration.compare import check_runs
-from rsmcheck.observables import allocate
-from rsmcheck.store import EngineRun, Event, Phase
+from rsmcheck.core.observables import allocate
+from rsmcheck.core.store import EngineRun, Event, Phase
 
 
 def _flight(engine: str, mission, offsets: dict[str, float] | None = None) -> EngineRun:
@@ -93,7 +93,7 @@ def test_every_phase_has_its_rows_and_the_sequence_replaces_only_its_own():
 
 
 def test_a_sequence_may_only_replace_rows_of_its_phases(tmp_path):
-    from rsmcheck.errors import InputError
+    from rsmcheck.core.errors import InputError
 
     src = load_case("mission").path
     text = open(src, encoding="utf-8").read()

@@ -10,12 +10,12 @@ import math
 import numpy as np
 import pytest
 
-from rsmcheck.cases import CompareSpec, list_cases, load_case
+from rsmcheck.core.cases import CompareSpec, list_cases, load_case
 from rsmcheck.cli import main
 from rsmcheck.orchestration.compare import (METRICS, SCALE_FLOORS, Check, check_runs, compare_runs, difference,
                               growth_rate, relative_errors)
-from rsmcheck.observables import NAMES, allocate
-from rsmcheck.store import EngineRun, Event
+from rsmcheck.core.observables import NAMES, allocate
+from rsmcheck.core.store import EngineRun, Event
 
 
 def make_run(engine: str, n: int = 5, **values) -> EngineRun:
@@ -27,7 +27,7 @@ def make_run(engine: str, n: int = 5, **values) -> EngineRun:
 
 
 def test_every_metric_a_case_may_ask_for_is_computed():
-    """rsmcheck.cases.METRICS (what the loader accepts) is what `difference` computes."""
+    """rsmcheck.core.cases.METRICS (what the loader accepts) is what `difference` computes."""
     t = np.arange(0.0, 2.0, 0.01)
     obs = np.exp(0.1 * t)[:, None] * np.ones((1, 6))
     ref, other = make_run("reference", n=t.size, joint_angles=obs), make_run("exudyn", n=t.size, joint_angles=2 * obs)

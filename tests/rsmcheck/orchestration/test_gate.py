@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from reference_model.engine import ReferenceEngine
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.cli import main
 from rsmcheck.orchestration.gate import (
     PERTURBATION,
@@ -32,8 +32,8 @@ from rsmcheck.orchestration.gate import (
     summarize_change,
     write_golden,
 )
-from rsmcheck.runner import run
-from rsmcheck.store import Event
+from rsmcheck.driver.runner import run
+from rsmcheck.core.store import Event
 
 TINY = """\
 name = "tiny"
@@ -235,7 +235,7 @@ def test_the_gate_sees_more_work_and_records_less(tiny, tiny_runs, tmp_path):
 
 
 def test_bad_goldens_are_input_errors(tiny, tiny_runs, tmp_path):
-    from rsmcheck.errors import InputError
+    from rsmcheck.core.errors import InputError
 
     case, _ = tiny
     with pytest.raises(InputError, match="bless it first"):

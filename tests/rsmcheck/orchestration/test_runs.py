@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 
 import rsmcheck.orchestration.runs as runs_mod
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.cli import main
-from rsmcheck.observables import allocate
+from rsmcheck.core.observables import allocate
 from rsmcheck.orchestration.engines import ENGINES
 from rsmcheck.orchestration.runs import (Job, SequenceRun, get_runs, read_stored, run_jobs, run_path, source_digest,
                                          store_runs)
-from rsmcheck.store import EngineRun, dumps_json
+from rsmcheck.core.store import EngineRun, dumps_json
 
 
 def _synthetic(engine: str, case, value: float = 0.0) -> EngineRun:

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from rsmcheck.cases import load_case
+from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.studies import _exudyn_grid, _integrator_grid, integrator_study, main, refinement_study
 
 

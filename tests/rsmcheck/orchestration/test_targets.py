@@ -56,7 +56,7 @@ def test_what_a_document_does_not_measure_is_not_read():
 
 
 def test_the_floor_is_the_integrators_share_of_the_missions_wall():
-    """A wall-time target's floor is the run's `wall_integrator_s` (rsmcheck.runner's split),
+    """A wall-time target's floor is the run's `wall_integrator_s` (rsmcheck.driver.runner's split),
     its margin bound / floor: 120 s against 300 s of integrator is 0.4, whatever the loop
     around it cost; a run that did not record its split has no floor, and the targets that
     are not wall times have none."""

@@ -31,10 +31,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from rsmcheck.cases import Case
-from rsmcheck.errors import InputError
-from rsmcheck.geometry import rigid_arm, rot
-from rsmcheck.params import Params
+from rsmcheck.core.cases import Case
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.geometry import rigid_arm, rot
+from rsmcheck.core.params import Params
 
 
 @dataclass(frozen=True)

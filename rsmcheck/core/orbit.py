@@ -23,7 +23,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from rsmcheck.params import Params
+from rsmcheck.core.params import Params
 
 
 @dataclass(frozen=True)

@@ -31,8 +31,8 @@ from typing import Any, Mapping
 import h5py
 import numpy as np
 
-from rsmcheck.errors import InputError
-from rsmcheck.observables import NAMES, check_observables
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.observables import NAMES, check_observables
 
 def write_text(path: str | os.PathLike[str], text: str) -> Path:
     """Write `text` to `path` atomically (`<path>.tmp`, then renamed; removed on failure)."""
@@ -291,7 +291,7 @@ def git_commit(repo: str | os.PathLike[str] | None = None) -> tuple[str, str]:
     run reads them, and a bless of several cases would otherwise record its own first
     goldens as uncommitted changes of the code.
     """
-    cwd = Path(repo) if repo is not None else Path(__file__).resolve().parent.parent
+    cwd = Path(repo) if repo is not None else Path(__file__).resolve().parents[2]
     try:
         head = subprocess.run(
             ["git", "rev-parse", "--verify", "--quiet", "HEAD"],

@@ -1,6 +1,6 @@
 """What an engine offers the shared driver, and what the driver hands to controllers.
 
-Both engines (reference, Exudyn) implement `Engine`; `rsmcheck.runner.run` drives either
+Both engines (reference, Exudyn) implement `Engine`; `rsmcheck.driver.runner.run` drives either
 through the same sampled-data loop (docs/physics.md §6), so the controller, the capture
 logic and the output sampling are the same code for both.  Nothing here knows how an
 engine computes anything.

@@ -15,9 +15,9 @@ applies the saturations of Tables 3–4 (|τ_B| ≤ 12 N·m, |τ_m| ≤ 80 N·m)
   or a grapple sensor sees it) or the rigid model's tip from the joint angles
   (`feedback = "kinematic"`).
 
-Desired conditions are fixed (hold, freeze) or quintic moves (`rsmcheck.trajectories`).
+Desired conditions are fixed (hold, freeze) or quintic moves (`rsmcheck.core.trajectories`).
 The programme (which arm does what, when) is a sequence of segments of the case file, run
-by `ProgrammeController` together with `rsmcheck.runner`.
+by `ProgrammeController` together with `rsmcheck.driver.runner`.
 """
 
 from __future__ import annotations
@@ -28,11 +28,11 @@ from typing import Callable
 
 import numpy as np
 
-from rsmcheck.cases import ArmCommand, ControllerSpec, Segment
-from rsmcheck.engine import Inputs, Sensors
-from rsmcheck.geometry import arm_jacobian, arm_pins, rot
-from rsmcheck.params import Params
-from rsmcheck.trajectories import Quintic, quintic
+from rsmcheck.core.cases import ArmCommand, ControllerSpec, Segment
+from rsmcheck.core.engine import Inputs, Sensors
+from rsmcheck.core.geometry import arm_jacobian, arm_pins, rot
+from rsmcheck.core.params import Params
+from rsmcheck.core.trajectories import Quintic, quintic
 
 Controller = Callable[[Sensors], Inputs]
 

@@ -29,13 +29,13 @@ from typing import Callable
 
 import numpy as np
 
-from rsmcheck.cases import Case
-from rsmcheck.controllers import ProgrammeController, make_controller
-from rsmcheck.engine import Engine, Inputs, Sensors
-from rsmcheck.errors import InputError, SimulationDiverged
-from rsmcheck.geometry import rot
-from rsmcheck.observables import NAMES
-from rsmcheck.store import EngineRun, Event, Phase
+from rsmcheck.core.cases import Case
+from rsmcheck.driver.controllers import ProgrammeController, make_controller
+from rsmcheck.core.engine import Engine, Inputs, Sensors
+from rsmcheck.core.errors import InputError, SimulationDiverged
+from rsmcheck.core.geometry import rot
+from rsmcheck.core.observables import NAMES
+from rsmcheck.core.store import EngineRun, Event, Phase
 
 Progress = Callable[[str, float, float], None]
 

@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
-from rsmcheck.errors import InputError
+from rsmcheck.core.errors import InputError
 
 # ---------------------------------------------------------------------------------------
 # Sections.  Each field's metadata["why"] is the sentence that justifies an open value;

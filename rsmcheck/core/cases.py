@@ -20,14 +20,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from rsmcheck.errors import InputError
-from rsmcheck.observables import NAMES as OBSERVABLE_NAMES  # what a [compare] table may name
-from rsmcheck.params import Params
+from rsmcheck.core.errors import InputError
+from rsmcheck.core.observables import NAMES as OBSERVABLE_NAMES  # what a [compare] table may name
+from rsmcheck.core.params import Params
 
 #: the case files: the repository's cases/ folder, next to this package.  rsmcheck is used
 #: from a checkout (editable install, `make venv`), so the TOML files are read where they
 #: are and are not package data; a wheel installed elsewhere would not carry them.
-CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
+CASES_DIR = Path(__file__).resolve().parents[2] / "cases"
 
 ARM_MODES = ("hold", "freeze", "move", "approach", "carry", "off", "torque")
 TARGET_MODES = ("move", "push", "com_align")
@@ -88,7 +88,7 @@ class ControllerSpec:
 
 @dataclass(frozen=True)
 class ArmCommand:
-    """What one arm does during a segment (see rsmcheck.controllers)."""
+    """What one arm does during a segment (see rsmcheck.driver.controllers)."""
 
     mode: str = "hold"
     to: tuple[float, float, float] | None = None  # move: x, y [m], φ [deg], base frame
@@ -860,7 +860,7 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
     for obs, item in v.items():
         k = f"{key}.{obs}"
         if obs not in OBSERVABLE_NAMES or obs == "time":
-            raise InputError(w, k, "not an observable (docs/physics.md §11, rsmcheck.observables)")
+            raise InputError(w, k, "not an observable (docs/physics.md §11, rsmcheck.core.observables)")
         c = _table(w, k, item, {
             "tolerance": lambda kk, x: _number(w, kk, x, 0.0, lo_open=True),
             "why": lambda kk, x: _text(w, kk, x),

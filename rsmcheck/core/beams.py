@@ -26,7 +26,7 @@ def beta_l(basis: str, j: int) -> float:
 
 
 def analytic_frequencies(link, basis: str, n: int = 2) -> np.ndarray:
-    """The first `n` frequencies [Hz] of a link (`rsmcheck.params.LinkParams`: length, EI,
+    """The first `n` frequencies [Hz] of a link (`rsmcheck.core.params.LinkParams`: length, EI,
     ρA) in `basis` ("PP" or "PF")."""
     c = math.sqrt(link.ei / link.rho_a)
     return np.array([b * b * c / (2 * math.pi * link.length**2) for b in (beta_l(basis, j) for j in range(1, n + 1))])

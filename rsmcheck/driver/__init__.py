@@ -1,0 +1,2 @@
+"""The sampled-data driver every engine shares: the initial state, the controllers and the
+runner.  It reads the foundation (rsmcheck.core) and no engine."""
