@@ -32,6 +32,7 @@ from exudyn_model.stepping import SteppingMixin, _Worker
 from exudyn_model.switching import SwitchingMixin
 from rsmcheck.core.cases import Case, first_given
 from rsmcheck.core.engine import Inputs, Sensors
+from rsmcheck.core.plugins import settings_of
 from rsmcheck.driver.initial import StartState, build_initial
 from rsmcheck.core.params import Params
 from rsmcheck.core.store import package_versions
@@ -113,7 +114,7 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.params = params or case.params
         self.rigid = bool(rigid)
         # explicit options > the case's [exudyn] table > the engine defaults
-        given = case.exudyn
+        given = settings_of(case, self.name)  # the case's [exudyn]
         self.n_elements = int(first_given(n_elements, given.n_elements, links.N_ELEMENTS_DEFAULT))
         self.substeps = int(first_given(substeps, given.substeps, SUBSTEPS_DEFAULT))
         self.quiet_substeps = None if quiet_substeps is None else int(quiet_substeps)

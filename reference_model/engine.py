@@ -24,7 +24,9 @@ from reference_model import observe, switching
 from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, initial_state
 from reference_model.stepping import SteppingMixin
 from reference_model.trbdf2 import N_WORK
-from rsmcheck.core.cases import INTEGRATORS, Case, first_given
+from reference_model.settings import INTEGRATORS
+from rsmcheck.core.cases import Case, first_given
+from rsmcheck.core.plugins import settings_of
 from rsmcheck.core.engine import Inputs, Sensors
 from rsmcheck.driver.initial import StartState, build_initial, orbit_start
 from rsmcheck.core.params import Params
@@ -54,17 +56,18 @@ class ReferenceEngine(SteppingMixin):
         self.params = params or case.params
         self.case = case
         self.start = start
-        static_modes = first_given(static_modes, case.reference.static_modes, STATIC_MODES_DEFAULT)
-        self.model = ReferenceModel(self.params, n_modes if n_modes is not None else case.n_modes,
+        given = settings_of(case, self.name)  # the case's [reference] and [solver] rtol, integrator
+        static_modes = first_given(static_modes, given.static_modes, STATIC_MODES_DEFAULT)
+        self.model = ReferenceModel(self.params, n_modes if n_modes is not None else given.n_modes,
                                     orbit=case.orbit, static_modes=static_modes)
-        self.rtol = rtol if rtol is not None else case.solver.rtol
-        self.integrator = integrator or case.solver.integrator
-        self.quiet_integrator = quiet_integrator or case.reference.quiet_integrator or self.integrator
+        self.rtol = rtol if rtol is not None else given.rtol
+        self.integrator = integrator or given.integrator
+        self.quiet_integrator = quiet_integrator or given.quiet_integrator or self.integrator
         for name in (self.integrator, self.quiet_integrator):
             if name not in INTEGRATORS:
                 raise ValueError(f"integrator must be one of {INTEGRATORS}, got {name!r}")
         # largest step: explicit option > the case's [reference] table > the integrator's default
-        self._h_max = {name: float(first_given(h_max, case.reference.h_max,
+        self._h_max = {name: float(first_given(h_max, given.h_max,
                                                H_MAX if name == "dopri5" else H_MAX_IMPLICIT))
                        for name in (self.integrator, self.quiet_integrator)}
         self.h_max = self._h_max[self.integrator]

@@ -36,6 +36,7 @@ import plotly.offline
 from rsmcheck.core.cases import Case, list_cases, load_case
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import BY_NAME
+from rsmcheck.core.plugins import plugins
 from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.bench_diff import work
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
@@ -43,7 +44,7 @@ from rsmcheck.orchestration.compare import metric_label
 from rsmcheck.orchestration.gate import golden_path, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
-from rsmcheck.report.plots import comparison_figure, run_marks, simple_figure
+from rsmcheck.report.plots import colour, comparison_figure, run_marks, simple_figure
 from rsmcheck.core.store import EngineRun, machine_text, read_run, same_machine, write_text
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -125,14 +126,23 @@ def verdict_rows(verdict: dict) -> list[VerdictRow]:
                 + (f"; {why}" if why else ""))
         rows.append(VerdictRow("gate", g["case"], g["engine"], "golden", ratio, 1.0,
                                1.0 / ratio if ratio else math.inf, bool(g.get("unchanged")), note, g["case"]))
-    for p in verdict.get("pinocchio", []):
+    for checker, checks in verdict.get("rigid", {}).items():
+        rows += _rigid_rows(checker, checks)
+    rows.sort(key=lambda r: (r.passed, r.margin))
+    return rows
+
+
+def _rigid_rows(checker: str, checks: list[dict]) -> list[VerdictRow]:
+    """The verdict rows of a checking plug-in's rigid checks."""
+    rows = []
+    label = plugins()[checker].label if checker in plugins() else checker
+    for p in checks:
         err = p.get("max_rel_error")
-        rows.append(VerdictRow("Pinocchio", f"{p['chain']}, holding {p['holding']}, {p['n_modes']} modes",
+        rows.append(VerdictRow(label, f"{p['chain']}, holding {p['holding']}, {p['n_modes']} modes",
                                p["quantity"], "rel. max", err, p["tolerance"],
                                p["tolerance"] / err if err else (math.inf if err == 0 else -math.inf),
                                bool(p["pass"]), p.get("error", f"{p['states']} random states; worst entry {p.get('entry', '')}"),
-                               "pinocchio"))
-    rows.sort(key=lambda r: (r.passed, r.margin))
+                               "rigid"))
     return rows
 
 
@@ -281,9 +291,10 @@ def case_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict], g
             out.append({"id": case.name, "title": case.name, "case": variant, "missing": True})
             continue
         golden = None
-        gpath = golden_path(case.name, "reference")
+        first = next(iter(runs))  # the model under test: its golden is drawn with it
+        gpath = golden_path(case.name, first)
         if st.short and gpath.exists():
-            golden = read_golden(gpath, "reference").run
+            golden = read_golden(gpath, first).run
         compared = [s.observable for s in variant.compare]
         figs = []
         for name in compared + [n for n in OVERVIEW if n not in compared]:
@@ -333,7 +344,8 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     html_text = _environment().get_template("page.html.j2").render(
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
         kinds=sorted({r.kind for r in rows}), missions=missions, cases=cases, paper=figures,
-        dep_head=dep_head, dep_rows=dep_rows, pinocchio=v.get("pinocchio", []), modes=st.modes,
+        dep_head=dep_head, dep_rows=dep_rows, rigid=[{"label": plugins()[n].label if n in plugins() else n, "checks": c}
+                                          for n, c in v.get("rigid", {}).items()], modes=st.modes,
         studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
         faults=_stored_json(data_dir, "faults.json"),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
@@ -388,7 +400,7 @@ def _phase_speed_figure(page: Page, doc: dict) -> str:
     traces = [{"type": "bar", "name": r["engine"],
                "x": [p["phase"] for p in r["phases"]],
                "y": [p["sim_s"] / p["wall_s"] if p.get("wall_s") else None for p in r["phases"]],
-               "marker": {"color": "#1f77b4" if r["engine"] == "reference" else "#ff7f0e"}} for r in runs]
+               "marker": {"color": colour(r["engine"])}} for r in runs]
     phases = [p["phase"] for p in runs[0]["phases"]]
     traces.append({"type": "scatter", "mode": "lines", "name": f"target ≥ {bound:g} × real time",
                    "x": [phases[0], phases[-1]], "y": [bound, bound],

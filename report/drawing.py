@@ -18,7 +18,7 @@ import numpy as np
 
 from rsmcheck.core.geometry import arm_pins, rot
 from rsmcheck.core.params import Params
-from rsmcheck.report.plots import DASH
+from rsmcheck.report.plots import dash as engine_dash
 from rsmcheck.core.store import EngineRun
 
 ARM_COLORS = {1: "#1f77b4", 2: "#d62728"}
@@ -47,7 +47,7 @@ def magnification(runs: dict[str, EngineRun], indices: dict[str, list[int]], len
 def robot_traces(run: EngineRun, i: int, params: Params, k: float, show_legend: bool) -> list[dict]:
     """Plotly traces of base, arms (links bent ×k), target and grasp points at sample `i`."""
     o = run.observables
-    dash = DASH.get(run.engine, "dot")
+    dash = engine_dash(run.engine)
     g = params.geometry
     L = params.link.length
     traces = []

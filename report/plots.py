@@ -14,13 +14,26 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from rsmcheck.core.plugins import plugins
 from rsmcheck.core.store import EngineRun
 
 MAX_BUCKETS = 400
-#: line style of each engine's traces (and of the golden of the reference)
-DASH = {"reference": "solid", "exudyn": "dash", "golden": "dot"}
+#: line style of the golden's traces; each engine's comes from its plug-in (`style`)
+GOLDEN_DASH = "dot"
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 EVENT_COLORS = {"capture": "#2ca02c", "release": "#d62728", "bistop": "#9467bd", "burn": "#ff7f0e"}
+
+
+def dash(engine: str) -> str:
+    """The line style of an engine's traces (its plug-in's `style`), or the golden's."""
+    known = plugins()
+    return known[engine].style.dash if engine in known else GOLDEN_DASH
+
+
+def colour(engine: str) -> str:
+    """The colour that stands for an engine where one colour does (bars, markers)."""
+    known = plugins()
+    return known[engine].style.colour if engine in known else "#555"
 
 
 def typed(a: np.ndarray, dtype: str = "f4") -> dict[str, str]:
@@ -122,31 +135,34 @@ def comparison_figure(title: str, unit: str, runs: dict[str, EngineRun], name: s
                       bands: Sequence[tuple[str, float, float]] = (), labels: Sequence[str] | None = None,
                       window: tuple[float, float] | None = None,
                       compared: Sequence[float] | None = None) -> dict:
-    """An observable of every engine overlaid (top) and, below, |reference − Exudyn| (the
-    largest component) on a log scale with the tolerance of the check, drawn over the
+    """An observable of every engine overlaid (top; each engine in its plug-in's line
+    style) and, below, |first − second engine| (the largest component; the first is the
+    model under test) on a log scale with the tolerance of the check, drawn over the
     interval the check compares (`compared` [s], None: the whole run); events marked."""
     data: list[dict] = []
-    both = "reference" in runs and "exudyn" in runs
+    order = list(runs)
+    both = len(order) >= 2
     # the legend: one entry per component (colour), one per engine (line style)
     for k, (engine, run) in enumerate(list(runs.items()) + ([("golden", golden)] if golden is not None else [])):
         t = np.asarray(run.observables["time"], float) + time_offset
         y = components(run.observables[name])
         for c in range(y.shape[1]):
             label = labels[c] if labels and c < len(labels) else (f"[{c}]" if y.shape[1] > 1 else name)
-            data.append(line(t, y[:, c], f"{engine} {label}", COLORS[c % len(COLORS)], DASH.get(engine, "dot"),
+            data.append(line(t, y[:, c], f"{engine} {label}", COLORS[c % len(COLORS)], dash(engine),
                              group=label, show=False, width=1.0 if engine == "golden" else 1.4))
             if k == 0 and y.shape[1] > 1:
                 data.append(legend_entry(label, COLORS[c % len(COLORS)], "solid", group=label))
-        data.append(legend_entry(engine, "#555", DASH.get(engine, "dot"), group=engine))
+        data.append(legend_entry(engine, "#555", dash(engine), group=engine))
     layout = base_layout(title, height=420 if both else 300)
     layout["yaxis"].update(title={"text": unit}, domain=[0.38, 1.0] if both else [0, 1])
     if both:
-        t = np.asarray(runs["reference"].observables["time"], float) + time_offset
-        a, b = components(runs["exudyn"].observables[name]), components(runs["reference"].observables[name])
+        t = np.asarray(runs[order[0]].observables["time"], float) + time_offset
+        a, b = components(runs[order[1]].observables[name]), components(runs[order[0]].observables[name])
         if a.shape == b.shape:
             err = np.max(np.abs(a - b), axis=1)
             floor = max(float(np.max(err[np.isfinite(err)], initial=0.0)) * 1e-8, 1e-300)
-            data.append(line(t, np.maximum(err, floor), "|ref − Exudyn|", "#444", yaxis="y2", group="error"))
+            data.append(line(t, np.maximum(err, floor), f"|{order[0]} − {order[1]}|", "#444", yaxis="y2",
+                             group="error"))
             if tolerance is not None:
                 span = ([float(t[0]), float(t[-1])] if compared is None
                         else [float(compared[0]) + time_offset, float(compared[1]) + time_offset])

@@ -10,7 +10,6 @@ output that goes away (`rsmcheck cases | head -1`) ends the command quietly
 from __future__ import annotations
 
 import argparse
-import inspect
 import sys
 from pathlib import Path
 from typing import Callable, Sequence
@@ -19,7 +18,7 @@ from rsmcheck.core.cases import list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.orchestration import bench, compare, gate
 from rsmcheck.orchestration.chain import run_case
-from rsmcheck.orchestration.engines import ENGINES
+from rsmcheck.core.plugins import available, engine_names, plugin, plugins, require, with_capability
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
 
@@ -40,19 +39,40 @@ def _cmd_cases(args: argparse.Namespace) -> int:
     return 0
 
 
-def _engine_names(choice: str) -> list[str]:
-    return list(ENGINES) if choice == "all" else [choice]
+def _engine_names(choice: str | None) -> list[str]:
+    """The engines `--engine`/`--engines` names ("all", a comma-separated list, or None for
+    the default engines), each with its libraries installed."""
+    names = engine_names(choice)
+    for n in names:
+        require(n)
+    return names
+
+
+def _cmd_engines(args: argparse.Namespace) -> int:
+    """`rsmcheck engines`: every registered plug-in, what it offers and whether it can run."""
+    for name, p in plugins().items():
+        role = "simulates" if p.simulates else "checks"
+        caps = [c for c in ("linear_plant", "coupled_frequencies", "link_frequencies", "rhs_timing", "rigid_checks",
+                            "aba_timing") if getattr(p, c, None) is not None]
+        state = "available" if available(name) else (
+            f"NOT INSTALLED: pip install 'rsmcheck[{p.extra}]'" if p.extra else "NOT INSTALLED")
+        tables = ", ".join(f"[{t}]" for t in p.tables) or "-"
+        print(f"{name:12s} {p.label:12s} {role:9s} {state:12s} tables {tables}; module {type(p).__module__}")
+        if caps:
+            print(f"{'':12s} offers {', '.join(caps)}")
+    return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out")  # before anything runs: an existing file there is a bad input
     cases = [load_case(name) for name in args.case]  # validate every case before running any
+    engines = _engine_names(args.engine) if args.engine else _engine_names(None)[:1]
     out.mkdir(parents=True, exist_ok=True)
     for case in cases:
-        path = run_case(case, _engine_names(args.engine), args.short, out,
+        path = run_case(case, engines, args.short, out,
                         from_dir=Path(args.from_dir) if args.from_dir else None,
                         progress=terminal_progress, chain=False if args.standalone else None)
-        print(f"{case.name}: wrote {path} ({args.engine})")
+        print(f"{case.name}: wrote {path} ({', '.join(engines)})")
     return 0
 
 
@@ -76,21 +96,20 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 1 if failures else 0
 
 
-def _engine_options(pairs: Sequence[str] | None, engine: str) -> dict:
-    """KEY=VALUE options of one engine's constructor (ints, floats, true/false, text)."""
-    # engines are imported lazily: Exudyn is heavy and optional
-    if engine == "reference":
-        from reference_model.engine import ReferenceEngine as cls
-    else:
-        from exudyn_model.engine import ExudynEngine as cls
-    allowed = [k for k in inspect.signature(cls.__init__).parameters if k not in ("self", "case", "params")]
-    out: dict = {}
-    for item in pairs or ():
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise InputError(f"--{engine}", item, "must be KEY=VALUE")
+def _engine_options(items: Sequence[str] | None, engines: Sequence[str]) -> dict[str, dict]:
+    """`--option ENGINE:KEY=VALUE` items → {engine: {key: value}} for the constructors of
+    `engines` (ints, floats, true/false, text)."""
+    out: dict[str, dict] = {e: {} for e in engines}
+    for item in items or ():
+        engine, colon, pair = item.partition(":")
+        key, sep, text = pair.partition("=")
+        if not colon or not sep or not key:
+            raise InputError("--option", item, "must be ENGINE:KEY=VALUE")
+        if engine not in out:
+            raise InputError("--option", item, f"{engine!r} is not one of the engines run ({', '.join(engines)})")
+        allowed = plugin(engine).engine_options
         if key not in allowed:
-            raise InputError(f"--{engine}", key, f"unknown option (known: {', '.join(allowed)})")
+            raise InputError("--option", item, f"unknown option of {engine} (known: {', '.join(allowed)})")
         value: object = text
         low = text.lower()
         if low in ("true", "false"):
@@ -102,7 +121,7 @@ def _engine_options(pairs: Sequence[str] | None, engine: str) -> dict:
                     break
                 except ValueError:
                     pass
-        out[key] = value
+        out[engine][key] = value
     return out
 
 
@@ -113,12 +132,15 @@ def _fmt(x: float) -> str:
 def _cmd_check(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out") if args.out else None
     cases = [load_case(name) for name in args.case]  # validate every case before running any
-    options = {"reference": _engine_options(args.reference, "reference"),
-               "exudyn": _engine_options(args.exudyn, "exudyn")}
+    engines = _engine_names(args.engines)
+    if len(engines) < 2:
+        raise InputError("--engines", args.engines, "a check compares two or more engines")
+    options = _engine_options(args.option, engines)
     # the runs come from rsmcheck.orchestration.runs.get_runs, as the report's do: stored in
     # and reused from --out when given, else made in memory; the rows by compare.case_rows
     results = compare.check_cases(cases, args.short, options, out, rerun=args.rerun, workers=0 if args.serial else 2,
-                                  progress=_progress if not args.json and sys.stderr.isatty() else None)
+                                  progress=_progress if not args.json and sys.stderr.isatty() else None,
+                                  engines=engines)
     for res in results:
         if res.error is not None:  # reported as before: the cases ahead of it are shown
             raise res.error
@@ -129,10 +151,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
             continue
         case = next(c for c in cases if c.name == res.case)
         variant = "short" if args.short and case.short is not None else "full"
-        print(f"{case.name} ({variant}, {res.duration:g} s; wall: reference {res.wall_s['reference']:.1f} s, "
-              f"exudyn {res.wall_s['exudyn']:.1f} s)")
+        walls = ", ".join(f"{e} {res.wall_s[e]:.1f} s" for e in engines)
+        print(f"{case.name} ({variant}, {res.duration:g} s; wall: {walls})")
         print(f"  {'observable':20s} {'metric':8s} {'error':>10s} {'tolerance':>10s} {'margin':>8s}  result")
-        for r in res.rows:
+        for i, r in enumerate(res.rows):
+            if len(engines) > 2 and (i == 0 or res.rows[i - 1].engines != r.engines):
+                print(f"  {r.engines[0]} against {r.engines[1]}:")
             print(f"  {r.observable:20s} {r.metric_label:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
                   + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
             if r.switch_note():
@@ -144,7 +168,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         doc = {"checks": [r.as_dict() for r in rows], "skipped": skipped,
                "runs": [{"case": res.case, "duration_s": res.duration, "wall_s": res.wall_s}
                         for res in results if not res.skipped],
-               "options": options, "short": bool(args.short)}
+               "options": options, "engines": engines, "short": bool(args.short)}
         print(dumps_json(doc))
     else:
         print(f"{len(rows) - len(failed)} of {len(rows)} comparisons pass"
@@ -159,29 +183,36 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     # lazy: at the top its scipy would add ≈ 0.5 s to every command (`rsmcheck --help` takes 0.4 s)
     from rsmcheck.orchestration.modes import arm_rows, link_rows
 
-    links = link_rows(n_elements=args.elements)
-    arms = arm_rows(n_modes=args.modes, n_elements=args.elements)
+    engines = _engine_names(args.engines)
+    options = _engine_options(args.option, engines)
+    links = link_rows(options=options, engines=engines)
+    arms = arm_rows(options=options, engines=engines)
     if args.json:
         print(dumps_json({"links": links, "arms": arms}))
         return 0
-    print(f"Link eigenfrequencies [Hz] (Exudyn: {links[0]['exudyn_elements']} ANCF elements per link)")
-    print(f"  {'basis':5s} {'mode':>4s} {'Table 2':>9s} {'analytic':>10s} {'reference':>10s} {'Exudyn':>10s}"
-          f" {'ref-an':>9s} {'exu-an':>9s}")
+    lk = [e for e in engines if f"{e}_hz" in links[0]]
+    print("Link eigenfrequencies [Hz]")
+    print(f"  {'basis':5s} {'mode':>4s} {'Table 2':>9s} {'analytic':>10s}" + "".join(f" {e[:10]:>10s}" for e in lk)
+          + "".join(f" {e[:5] + '-an':>9s}" for e in lk))
     for r in links:
-        print(f"  {r['basis']:5s} {r['mode']:4d} {r['table2_hz']:9.2f} {r['analytic_hz']:10.4f} {r['reference_hz']:10.4f}"
-              f" {r['exudyn_hz']:10.4f} {100 * r['reference_rel']:+8.4f}% {100 * r['exudyn_rel']:+8.4f}%")
+        print(f"  {r['basis']:5s} {r['mode']:4d} {r['table2_hz']:9.2f} {r['analytic_hz']:10.4f}"
+              + "".join(f" {r[e + '_hz']:10.4f}" for e in lk) + "".join(f" {100 * r[e + '_rel']:+8.4f}%" for e in lk))
+    ak = [e for e in engines if arms and f"{e}_hz" in arms[0]]
     print("Coupled frequencies of the robot at rest, undamped [Hz]")
-    print(f"  {'configuration':17s} {'mode':>4s} {'reference':>10s} {'Exudyn':>10s} {'difference':>11s}")
+    print(f"  {'configuration':17s} {'mode':>4s}" + "".join(f" {e[:10]:>10s}" for e in ak) + f" {'difference':>11s}")
     for r in arms:
-        print(f"  {r['configuration']:17s} {r['mode']:4d} {r['reference_hz']:10.4f} {r['exudyn_hz']:10.4f}"
-              f" {100 * r['rel_difference']:+10.4f}%")
+        print(f"  {r['configuration']:17s} {r['mode']:4d}" + "".join(f" {r[e + '_hz']:10.4f}" for e in ak)
+              + (f" {100 * r['rel_difference']:+10.4f}%" if "rel_difference" in r else ""))
     return 0
 
 
-def _cmd_pinocchio(args: argparse.Namespace) -> int:
-    from pinocchio_check.compare import main  # engines are imported lazily: Pinocchio is optional
-
-    return main(args.rest)
+def _plugin_command(args: argparse.Namespace) -> int:
+    """A sub-command a plug-in brings (its `commands`), e.g. `rsmcheck pinocchio`."""
+    for name, p in plugins().items():
+        if args.command in getattr(p, "commands", {}):
+            require(name, args.command)
+            return p.run_command(args.command, args.rest)
+    raise InputError("rsmcheck", args.command, "no plug-in offers this command")
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
@@ -262,8 +293,8 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "check": _cmd_check,
     "modes": _cmd_modes,
     "run": _cmd_run,
-    "pinocchio": _cmd_pinocchio,
     "report": _cmd_report,
+    "engines": _cmd_engines,
 }
 
 
@@ -273,7 +304,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("cases", help="list the cases, one line each")
     p = sub.add_parser("run", help="simulate cases and write DIR/CASE.h5")
     p.add_argument("case", nargs="+", help="case name (cases/NAME.toml) or path to a case file")
-    p.add_argument("--engine", default="reference", choices=[*ENGINES, "all"])
+    p.add_argument("--engine", default=None,
+                   help="ENGINE, A,B or all (default: the first default engine, the model under test)")
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
     p.add_argument("--from", dest="from_dir", default=None,
@@ -284,10 +316,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("case", nargs="+", help="case name (cases/NAME.toml) or path to a case file")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
     p.add_argument("--json", action="store_true", help="one JSON object {\"checks\": [...]} on stdout")
-    p.add_argument("--reference", action="append", metavar="KEY=VALUE",
-                   help="reference engine option, e.g. n_modes=4 (repeatable)")
-    p.add_argument("--exudyn", action="append", metavar="KEY=VALUE",
-                   help="Exudyn engine option, e.g. substeps=8, n_elements=12 (repeatable)")
+    p.add_argument("--engines", metavar="A,B", help="the engines compared, the model under test first "
+                                                     "(default: the default engines, `rsmcheck engines`)")
+    p.add_argument("--option", action="append", metavar="ENGINE:KEY=VALUE",
+                   help="an engine's constructor option, e.g. reference:n_modes=4 (repeatable)")
     p.add_argument("--out", help="store DIR/CASE.h5 with both runs, and reuse the runs stored there "
                                  "that are current (same case file, parameters, variant, options, code)")
     p.add_argument("--rerun", action="store_true", help="with --out: run again even what is stored and current")
@@ -295,12 +327,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the engines one after the other in this process (default: 2 processes)")
     p = sub.add_parser("modes", help="link and arm eigenfrequencies: analytic, reference, Exudyn")
     p.add_argument("--json", action="store_true", help="one JSON object {\"links\": [...], \"arms\": [...]}")
-    p.add_argument("--modes", type=int, help="reference modes per link for the arms (default: each case's)")
-    p.add_argument("--elements", type=int, help="Exudyn ANCF elements per link (default 8)")
+    p.add_argument("--engines", metavar="A,B", help="the engines (default: the default engines)")
+    p.add_argument("--option", action="append", metavar="ENGINE:KEY=VALUE",
+                   help="an engine's constructor option, e.g. reference:n_modes=4 (repeatable)")
     p = sub.add_parser("report", help="run what is not stored yet, then write one self-contained HTML page")
     p.add_argument("--out", default="out/report.html",
                    help="HTML file; the runs and tables it is built from are stored in its folder")
-    p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
+    p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case")
     p.add_argument("--cases", nargs="+", metavar="CASE", help="only these cases (default: all)")
     p.add_argument("--rerun", action="store_true", help="run everything again, even what is stored and current")
@@ -308,7 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="only render what is stored (seconds); run nothing")
     p = sub.add_parser("gate", help="run the cases' short variants and compare each engine with its golden")
     p.add_argument("case", nargs="*", help="case names (default: every stand-alone case)")
-    p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
+    p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
     p.add_argument("--json", action="store_true", help="one JSON object {\"gate\": [...]} on stdout")
     p.add_argument("--tolerances", action="store_true",
                    help="print the goldens' gate tolerances and what they were measured from; run nothing")
@@ -316,16 +349,23 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bless", help="re-run cases and rewrite their goldens (with --reason, into the changelog)")
     p.add_argument("case", nargs="+", help="case names, or 'all'")
     p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
-    p.add_argument("--engine", default="all", choices=[*ENGINES, "all"])
+    p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
     p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
     sub.add_parser("bench", help="speed of each engine on the same work [--json] [--full]", add_help=False)
-    p = sub.add_parser("pinocchio", help="rigid checks of the reference against Pinocchio", add_help=False)
-    p.add_argument("rest", nargs=argparse.REMAINDER)
+    sub.add_parser("engines", help="the registered engine plug-ins, what they offer, whether they are installed")
+    for p_name, text in _plugin_commands().items():
+        p = sub.add_parser(p_name, help=text, add_help=False)
+        p.add_argument("rest", nargs=argparse.REMAINDER)
     return parser
 
 
+def _plugin_commands() -> dict[str, str]:
+    """The sub-commands the plug-ins bring: name → help."""
+    return {c: text for p in plugins().values() for c, text in getattr(p, "commands", {}).items()}
+
+
 #: subcommands with their own argument parsing (argparse cannot pass "--json" through)
-DELEGATED = {"pinocchio", "bench"}
+DELEGATED = {"bench"}
 
 
 #: commands that only list something (also `gate --tolerances`): cut short by a reader that
@@ -336,7 +376,10 @@ LISTINGS = {"cases", "modes"}
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] in DELEGATED:
+    plugin_commands = exit_code("rsmcheck", _plugin_commands) if argv else {}
+    if isinstance(plugin_commands, int):  # a plug-in that does not load: one line, exit 2
+        return plugin_commands
+    if argv and argv[0] in (DELEGATED | set(plugin_commands)):
         args = argparse.Namespace(command=argv[0], rest=argv[1:])
     else:
         try:
@@ -344,7 +387,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except SystemExit:  # --help (0) or a usage error (2): the help may meet a closed pipe
             flush_stdout()
             raise
-    return exit_code("rsmcheck", lambda: COMMANDS[args.command](args),
+    command = COMMANDS.get(args.command, _plugin_command)
+    return exit_code("rsmcheck", lambda: command(args),
                      cut_short=0 if args.command in LISTINGS or getattr(args, "tolerances", False) else 1)
 
 

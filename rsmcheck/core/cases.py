@@ -23,6 +23,10 @@ from typing import Any, Callable, Mapping
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES as OBSERVABLE_NAMES  # what a [compare] table may name
 from rsmcheck.core.params import Params
+from rsmcheck.core.plugins import owned_solver_keys, owned_tables, parse_engine_settings
+from rsmcheck.core.schema import arm as _arm, arms as _arms, choice as _choice, flag as _flag, grasp as _grasp
+from rsmcheck.core.schema import integer as _integer, number as _number, require as _require, table as _table
+from rsmcheck.core.schema import text as _text, vector as _vector
 
 #: the case files: the repository's cases/ folder, next to this package.  rsmcheck is used
 #: from a checkout (editable install, `make venv`), so the TOML files are read where they
@@ -35,7 +39,8 @@ BASE_MODES = ("hold", "freeze", "angle", "retrograde", "off")
 #: metrics a [compare] entry may ask for; rsmcheck.orchestration.compare.difference computes each
 METRICS = ("max_abs", "rms", "final", "growth")
 #: top-level keys a [short] table may replace
-SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare", "exudyn")
+SHORT_KEYS = ("duration", "segment", "release", "capture", "controller", "solver", "compare")
+#: besides SHORT_KEYS, [short] may replace any table an engine plug-in owns
 
 
 @dataclass(frozen=True)
@@ -148,16 +153,13 @@ class CaptureSpec:
     point_T: tuple[float, float] | None = None  # None: params.geometry.grasp_T(arm)
 
 
-#: the reference engine's integrators (reference_model/stepping.py)
-INTEGRATORS = ("dopri5", "trbdf2", "imex")
-
-
 @dataclass(frozen=True)
 class SolverSpec:
+    """[solver]: the sampled-data loop's periods.  Its other keys belong to the engine
+    plug-ins that declare them (`EnginePlugin.solver_keys`)."""
+
     control_period: float = 1e-3
     output_period: float = 1e-2
-    rtol: float = 1e-9
-    integrator: str = "dopri5"  # the reference engine's: dopri5 | trbdf2 | imex
 
     @property
     def output_every(self) -> int:
@@ -171,46 +173,8 @@ class SolverSpec:
 
 def first_given(*values):
     """The first of `values` that is not None: an engine setting from its explicit option,
-    the case's [reference]/[exudyn] table and the engine's default, in that order."""
+    the case's settings table and the engine's default, in that order."""
     return next(v for v in values if v is not None)
-
-
-class _EngineSettings:
-    def given(self) -> dict[str, Any]:
-        """The settings the case file gives (None = not given), without `why`: a run's
-        provenance."""
-        return {k: v for k, v in vars(self).items() if v is not None and k != "why"}
-
-
-@dataclass(frozen=True)
-class ReferenceSettings(_EngineSettings):
-    """[reference]: the reference engine's settings of a case; None = the engine's default
-    (reference_model/engine.py).  `why` is the study behind them (required with h_max or
-    quiet_integrator)."""
-
-    static_modes: bool | None = None  # static correction shapes (docs/physics.md §2.4)
-    h_max: float | None = None  # largest integration step [s]
-    #: the integrator of the control intervals longer than [solver] control_period (the
-    #: quiet segments' own control_period, docs/physics.md §7); None: [solver] integrator
-    quiet_integrator: str | None = None
-    why: str = ""
-
-
-@dataclass(frozen=True)
-class ExudynSettings(_EngineSettings):
-    """[exudyn]: the Exudyn engine's settings of a case; None = the engine's default
-    (exudyn_model/engine.py).  `why` is the study behind them (required with any)."""
-
-    substeps: int | None = None  # generalized-α steps per control period
-    n_elements: int | None = None  # ANCF elements per link
-    constraints: str | None = None  # "index3" | "index2"
-    restart_threshold: float | None = None  # input jump (fraction of its limit) restarting
-    newton_atol: float | None = None  # absolute Newton tolerance [N]
-    jacobian_per_step: bool | None = None  # a new Newton Jacobian at every step
-    why: str = ""
-    #: factor on the absolute Newton tolerance, whichever it is (None: 1): the gate's decision
-    #: perturbation (rsmcheck.orchestration.gate.step_perturbed_case), never a case file's
-    newton_atol_scale: float | None = None
 
 
 @dataclass(frozen=True)
@@ -236,7 +200,6 @@ class Case:
     releases: tuple[ReleaseSpec, ...]
     capture: CaptureSpec
     solver: SolverSpec
-    n_modes: tuple[int, ...]
     params: Params
     path: str
     file_hash: str
@@ -253,10 +216,9 @@ class Case:
     #: a sequence case: rows of a phase's [compare] table replaced for the chained flight
     #: (phase name → the replacing rows), from the sequence file's [compare.PHASE.OBSERVABLE]
     phase_compare: Mapping[str, tuple[CompareSpec, ...]] = field(default_factory=dict)
-    #: the Exudyn engine's settings of the case ([exudyn])
-    exudyn: ExudynSettings = ExudynSettings()
-    #: the reference engine's settings of the case ([reference], n_modes aside)
-    reference: ReferenceSettings = ReferenceSettings()
+    #: each registered engine plug-in's settings of the case (name → the plug-in's own
+    #: settings object), from the tables it owns (rsmcheck.core.plugins)
+    engine_settings: Mapping[str, Any] = field(default_factory=dict)
 
     def run_duration(self, short: bool) -> float:
         return self.short_duration if short else self.duration
@@ -275,71 +237,6 @@ class Case:
         return self.params.geometry.grasp_T(arm)
 
 
-# ---------------------------------------------------------------------------------------
-# Field checkers: each returns the converted value or raises InputError(where, key, why)
-# ---------------------------------------------------------------------------------------
-def _number(where: str, key: str, v: Any, lo: float | None = None, lo_open: bool = False,
-            hi: float | None = None) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise InputError(where, key, f"must be a number, got {type(v).__name__}")
-    v = float(v)
-    if not math.isfinite(v):
-        raise InputError(where, key, f"must be finite, got {v}")
-    if lo is not None and (v <= lo if lo_open else v < lo):
-        raise InputError(where, key, f"must be {'>' if lo_open else '>='} {lo}, got {v}")
-    if hi is not None and v > hi:
-        raise InputError(where, key, f"must be <= {hi}, got {v}")
-    return v
-
-
-def _integer(where: str, key: str, v: Any, lo: int, hi: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-        raise InputError(where, key, f"must be an integer {lo}..{hi}, got {v!r}")
-    return v
-
-
-def _vector(where: str, key: str, v: Any, n: int, lo: float | None = None, lo_open: bool = False) -> tuple[float, ...]:
-    if not isinstance(v, list) or len(v) != n:
-        raise InputError(where, key, f"must be a list of {n} numbers")
-    return tuple(_number(where, f"{key}[{i}]", x, lo, lo_open) for i, x in enumerate(v))
-
-
-def _flag(where: str, key: str, v: Any) -> bool:
-    if not isinstance(v, bool):
-        raise InputError(where, key, f"must be true or false, got {type(v).__name__}")
-    return v
-
-
-def _arm(where: str, key: str, v: Any) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v not in (1, 2):
-        raise InputError(where, key, f"must be 1 or 2, got {v!r}")
-    return v
-
-
-def _text(where: str, key: str, v: Any) -> str:
-    if not isinstance(v, str) or not v.strip():
-        raise InputError(where, key, "must be a non-empty string")
-    return v
-
-
-def _table(where: str, key: str, v: Any, known: Mapping[str, Callable[[str, Any], Any]]) -> dict[str, Any]:
-    if not isinstance(v, Mapping):
-        raise InputError(where, key, "must be a table")
-    out = {}
-    for k, value in v.items():
-        if k not in known:
-            raise InputError(where, f"{key}.{k}", f"unknown key (known: {', '.join(sorted(known))})")
-        out[k] = known[k](f"{key}.{k}", value)
-    return out
-
-
-def _require(where: str, key: str, table: Mapping[str, Any], names: tuple[str, ...]) -> None:
-    for k in names:
-        if k not in table:
-            raise InputError(where, f"{key}.{k}", "missing (required)")
-
-
-# ---------------------------------------------------------------------------------------
 def case_path(name_or_path: str | Path) -> Path:
     """cases/NAME.toml for a bare name, else the path as given."""
     p = Path(name_or_path)
@@ -461,10 +358,11 @@ def _parse_with_short(raw: Mapping[str, Any], where: str, path: Path, digest: st
     if short_raw is not None and not isinstance(short_raw, Mapping):
         raise InputError(w, "short", "must be a table")
     short_raw = dict(short_raw or {})
+    allowed = (*SHORT_KEYS, *owned_tables())
     for k in short_raw:
-        if k not in SHORT_KEYS:
+        if k not in allowed:
             raise InputError(w, f"short.{k}", f"cannot be changed by the short variant "
-                             f"(allowed: {', '.join(SHORT_KEYS)})")
+                             f"(allowed: {', '.join(allowed)})")
     if "short_duration" in raw:
         if "duration" in short_raw:
             raise InputError(w, "short_duration", "given twice (also as short.duration)")
@@ -497,8 +395,8 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         return short_keys.get(k, k)
 
     top = {"name", "description", "duration", "short_duration", "initial", "orbit", "controller",
-           "release", "capture", "solver", "reference", "exudyn", "params", "segment", "compare",
-           "start_from", "short"}
+           "release", "capture", "solver", "params", "segment", "compare",
+           "start_from", "short", *owned_tables()}
     for k in raw:
         if k not in top:
             raise InputError(w, k, f"unknown key (known: {', '.join(sorted(top))})")
@@ -600,24 +498,23 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
     if cap.enabled and initial.grasp[cap.arm - 1] and has_initial and start_from is None:
         raise InputError(w, f"{kname('capture')}.enabled", f"arm {cap.arm} already holds the target at t = 0")
 
-    solver = SolverSpec(**_table(w, kname("solver"), raw.get("solver", {}), {
+    solver_raw = raw.get("solver", {})
+    engine_keys = owned_solver_keys()
+    solver = SolverSpec(**_table(w, kname("solver"), {k: x for k, x in solver_raw.items() if k not in engine_keys}
+                                if isinstance(solver_raw, Mapping) else solver_raw, {
         "control_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True, hi=0.1),
         "output_period": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
-        "rtol": lambda k, v: _number(w, k, v, 0.0, lo_open=True),
-        "integrator": lambda k, v: _choice(w, k, v, INTEGRATORS),
+        **{k: None for k in engine_keys},  # named in the error for an unknown key
     }))
     ratio = solver.output_period / solver.control_period
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
         raise InputError(w, kname("solver") + ".output_period", "must be a whole multiple of solver.control_period")
-    if solver.rtol >= 1e-2:
-        raise InputError(w, kname("solver") + ".rtol", f"{solver.rtol} is too loose to mean anything (< 1e-2)")
     steps = duration / solver.control_period
     if abs(steps - round(steps)) > 1e-6 * max(1.0, steps):
         raise InputError(w, kname("duration"), f"{duration} s is not a whole number of control periods "
                          f"({solver.control_period} s)")
 
-    n_modes, ref = _reference(w, "reference", raw.get("reference", {}))
-    exudyn = _exudyn(w, kname("exudyn"), raw.get("exudyn", {}))
+    engines = parse_engine_settings(raw, {k: x for k, x in solver_raw.items() if k in engine_keys}, w, kname)
 
     # a short variant that keeps the full programme is the full run cut at its duration
     cut = is_short and "segment" not in short_keys
@@ -640,10 +537,9 @@ def _parse(raw: Mapping[str, Any], where: str, path: Path, digest: str,
         name=name, description=_text(w, "description", raw["description"]), duration=duration,
         short_duration=duration, initial=initial, orbit=orbit_spec.enabled,
         controller=controller, releases=tuple(sorted(releases, key=lambda r: r.time)),
-        capture=cap, solver=solver, n_modes=n_modes, params=params, path=where,
+        capture=cap, solver=solver, params=params, path=where,
         file_hash=digest, raw=raw, orbit_spec=orbit_spec, segments=segments, compare=compare,
-        start_from=start_from, has_initial=has_initial, is_short=is_short, exudyn=exudyn,
-        reference=ref,
+        start_from=start_from, has_initial=has_initial, is_short=is_short, engine_settings=engines,
     )
 
 
@@ -888,71 +784,10 @@ def _window(w: str, key: str, v: Any) -> tuple[float, float]:
     return (t0, t1)
 
 
-def _exudyn(w: str, key: str, v: Any) -> ExudynSettings:
-    """[exudyn]: the engine's step and mesh for this case, with the reason (a study)."""
-    t = _engine_settings(w, key, v, {
-        "substeps": lambda k, x: _integer(w, k, x, 1, 4096),
-        "n_elements": lambda k, x: _integer(w, k, x, 1, 64),
-        "constraints": lambda k, x: _choice(w, k, x, ("index3", "index2")),
-        "restart_threshold": lambda k, x: _number(w, k, x, 0.0, hi=1.0),
-        "newton_atol": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
-        "jacobian_per_step": lambda k, x: _flag(w, k, x),
-    }, needs_why=("substeps", "n_elements", "constraints", "restart_threshold", "newton_atol",
-                  "jacobian_per_step"))
-    return ExudynSettings(**t)
-
-
-def _reference(w: str, key: str, v: Any) -> tuple[tuple[int, ...], ReferenceSettings]:
-    """[reference]: modes per link, and the engine's settings (the largest DP5 step, the
-    quiet segments' integrator, each with the reason, a study)."""
-    t = _engine_settings(w, key, v, {
-        "n_modes": lambda k, x: _modes(w, k, x),
-        "static_modes": lambda k, x: _flag(w, k, x),
-        "h_max": lambda k, x: _number(w, k, x, 0.0, lo_open=True, hi=1.0),
-        "quiet_integrator": lambda k, x: _choice(w, k, x, INTEGRATORS),
-    }, needs_why=("h_max", "quiet_integrator"))
-    n_modes = t.pop("n_modes", (2,) * 6)
-    return n_modes, ReferenceSettings(**t)
-
-
-def _engine_settings(w: str, key: str, v: Any, known: Mapping[str, Callable[[str, Any], Any]],
-                     needs_why: tuple[str, ...]) -> dict[str, Any]:
-    """An engine's settings table; a numerical setting in `needs_why` requires `why`."""
-    t = _table(w, key, v, {**known, "why": lambda k, x: _text(w, k, x)})
-    if any(k in t for k in needs_why) and "why" not in t:
-        raise InputError(w, f"{key}.why", "missing (required with any setting: the study behind it)")
-    return t
-
-
-def _grasp(where: str, key: str, v: Any) -> tuple[int, int]:
-    if not isinstance(v, list) or len(v) != 2 or any(isinstance(x, bool) or x not in (0, 1) for x in v):
-        raise InputError(where, key, "must be a list of two 0/1 values")
-    return (int(v[0]), int(v[1]))
-
-
-def _arms(where: str, key: str, v: Any) -> tuple[int, ...]:
-    if not isinstance(v, list) or not v or len(set(map(repr, v))) != len(v):
-        raise InputError(where, key, "must be a non-empty list of distinct arms (1, 2)")
-    return tuple(_arm(where, f"{key}[{i}]", x) for i, x in enumerate(v))
-
-
 def _held_points(where: str, key: str, v: Any, point) -> tuple[tuple[float, float], tuple[float, float]]:
     if not isinstance(v, list) or len(v) != 2:
         raise InputError(where, key, "must be a list of two points [[x, y], [x, y]]")
     return (point(f"{key}[0]", v[0], 1), point(f"{key}[1]", v[1], 2))
-
-
-def _choice(where: str, key: str, v: Any, options: tuple[str, ...]) -> str:
-    if v not in options:
-        raise InputError(where, key, f"must be one of {', '.join(options)}, got {v!r}")
-    return v
-
-
-def _modes(where: str, key: str, v: Any) -> tuple[int, ...]:
-    items = [v] * 6 if not isinstance(v, list) else v
-    if len(items) != 6 or any(isinstance(x, bool) or not isinstance(x, int) or not 0 <= x <= 6 for x in items):
-        raise InputError(where, key, "must be an integer 0..6 or a list of six")
-    return tuple(items)
 
 
 # ---------------------------------------------------------------------------------------

@@ -33,6 +33,7 @@ import numpy as np
 
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES, check_observables
+from rsmcheck.core.plugins import plugin_distributions
 
 def write_text(path: str | os.PathLike[str], text: str) -> Path:
     """Write `text` to `path` atomically (`<path>.tmp`, then renamed; removed on failure)."""
@@ -256,7 +257,7 @@ def machine() -> dict[str, Any]:
     cpu, mhz = _cpu()
     return {"cpu": cpu, "cpu_mhz": mhz, "logical_cpus": os.cpu_count(), "memory_gib": _memory_gib(),
             "system": platform.platform(), "python": platform.python_version(),
-            "packages": package_versions("numpy", "scipy", "numba", "exudyn", "pin")}
+            "packages": package_versions("numpy", "scipy", "numba", *plugin_distributions())}
 
 
 def machine_text(m: Mapping[str, Any] | None) -> str:

@@ -13,7 +13,7 @@ the engine beside the case by `rsmcheck.orchestration.chain`; the case itself on
 its predecessor) takes every pose, rate, motor angle, held point, orbit state and the
 propellant used from the state's common rigid part instead (links undeformed: the rigid
 part is what every engine can start from; an engine's own exact state is restored on top
-by `rsmcheck.orchestration.engines.make_engine`).
+by `rsmcheck.core.plugins.make_engine`).
 
 Orbit (docs/physics.md §5): with `[orbit] enabled`, the co-moving point O is put on a
 circular orbit of the case's altitude.  `centre_on_com` (default) shifts all positions

@@ -55,6 +55,7 @@ from typing import Any, Sequence
 
 from rsmcheck.core.cases import Case, list_cases, load_case
 from rsmcheck.core.errors import InputError
+from rsmcheck.core.plugins import available, engine_names, plugin, require, with_capability
 from rsmcheck.orchestration.bench_diff import compare, diff_table, read_bench
 from rsmcheck.orchestration.targets import read_targets, targets_table
 from rsmcheck.core.params import Params
@@ -67,7 +68,7 @@ _CHILD = r"""
 import json, pathlib, resource, sys, tempfile, time
 from rsmcheck.orchestration.bench import SOLVER_KEYS, SPLIT_KEYS, bench_cases
 from rsmcheck.orchestration.chain import run_mission
-from rsmcheck.orchestration.engines import make_engine
+from rsmcheck.core.plugins import make_engine
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import read_run
 name, engine_name, short = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
@@ -127,28 +128,32 @@ def bench_run(case: str, engine: str, variant: str) -> dict[str, Any]:
             "peak_mb": math.nan, "error": err[-1] if err else f"exit code {proc.returncode}, no output"}
 
 
-def rhs_timings(n: int = 2000) -> dict[str, Any]:
-    """µs per evaluation: reference RHS compiled and from Python (flexible and rigid),
-    Pinocchio ABA from Python (module doc)."""
-    # the engine packages are heavy optional imports (numba, pinocchio): imported here, when used
-    from reference_model.stepping import rhs_timing
-
+def rhs_timings(n: int = 2000, engines: Sequence[str] | None = None) -> dict[str, Any]:
+    """µs per evaluation: each engine plug-in's right-hand side compiled and from Python
+    (`rhs_timing`; also its rigid model where it declares `rigid_options`), and each checking
+    plug-in's articulated-body call (`aba_timing`), keys "ENGINE_call", "ENGINE_compiled",
+    "ENGINE_states", "ENGINE_rigid_…", "CHECKER_aba" (module doc)."""
     case = load_case("closed_squeeze")
     out: dict[str, Any] = {}
-    for key, options in (("reference", {}), ("reference_rigid", {"n_modes": 0, "static_modes": False})):
-        timing = rhs_timing(case, n, **options)
-        out[f"{key}_call"] = timing["call_us"]
-        out[f"{key}_compiled"] = timing["compiled_us"]
-        out[f"{key}_states"] = timing["states"]
-    try:
-        from pinocchio_check.model import aba_timing  # optional: pinocchio may be missing
-
-        timing = aba_timing(Params(), n)
-        out["pinocchio_aba"] = timing["call_us"]
-        out["pinocchio_nv"] = timing["nv"]
-    except Exception as exc:  # noqa: BLE001 — reported instead of a number
-        out["pinocchio_aba"] = math.nan
-        out["pinocchio_error"] = f"{type(exc).__name__}: {exc}"
+    for name in engines or with_capability("rhs_timing"):
+        p = plugin(name)
+        if not getattr(p, "rhs_timing", None) or not available(name):
+            continue
+        variants = [(name, {})] + ([(f"{name}_rigid", dict(p.rigid_options))] if getattr(p, "rigid_options", None) else [])
+        for key, options in variants:
+            timing = p.rhs_timing(case, n, **options)
+            out[f"{key}_call"] = timing["call_us"]
+            out[f"{key}_compiled"] = timing["compiled_us"]
+            out[f"{key}_states"] = timing["states"]
+    for name in with_capability("aba_timing"):
+        try:
+            require(name)
+            timing = plugin(name).aba_timing(Params(), n)
+            out[f"{name}_aba"] = timing["call_us"]
+            out[f"{name}_nv"] = timing["nv"]
+        except Exception as exc:  # noqa: BLE001 — reported instead of a number
+            out[f"{name}_aba"] = math.nan
+            out[f"{name}_error"] = f"{type(exc).__name__}: {exc}"
     return out
 
 
@@ -267,7 +272,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--variant", default="short", choices=[*VARIANTS, "both"],
                         help="the cases' --short variants (default), their full length, or both")
     parser.add_argument("--full", action="store_true", help="same as --variant full")
-    parser.add_argument("--engine", default="all", choices=["reference", "exudyn", "all"])
+    parser.add_argument("--engine", default="all", help="ENGINE, A,B or all (default: every engine that simulates)")
     parser.add_argument("--cases", nargs="+", help="only these cases (default: every case and the mission)")
     parser.add_argument("--jobs", type=_positive_int, default=1,
                         help="runs at a time, each in its own process (default 1; 2 on the 2-core machine puts the "
@@ -287,7 +292,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _show_stored(args)
     base = read_bench(args.baseline) if args.baseline else None  # before an hour of runs, not after
     out = output_file(args.out, "--out") if args.out else None
-    engines = ["reference", "exudyn"] if args.engine == "all" else [args.engine]
+    engines = engine_names(args.engine)
+    for e in engines:
+        require(e)
     variants = ["full"] if args.full else (list(VARIANTS) if args.variant == "both" else [args.variant])
     names = args.cases or [p.stem for p in list_cases()]
     for name in names:  # a misspelt case is a bad input (exit 2), not a failed run

@@ -45,7 +45,7 @@ from rsmcheck.core.errors import InputError
 from rsmcheck.core.geometry import rot
 from rsmcheck.driver.initial import StartState
 from rsmcheck.core.observables import NAMES
-from rsmcheck.orchestration.engines import make_engine
+from rsmcheck.core.plugins import make_engine
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import EngineRun, Event, Phase, write_run, write_text
 

@@ -23,11 +23,13 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.linalg import expm
 
 from rsmcheck.core.cases import at_rest, load_case, without_orbit
+from rsmcheck.core.plugins import default_engines, plugin
 from rsmcheck.driver.controllers import ArmModel, measure
 
 N_INPUTS = 7  # τ_m1..6, τ_B
@@ -88,13 +90,12 @@ def rotor_modes(s: np.ndarray, f_lo: float = 60.0, f_hi: float = 200.0, sigma_ma
     return s[np.argsort(s.imag)]
 
 
-def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
-    """Closed-loop rotor-mode exponents of `case` (at rest, initial configuration) in both
-    engines: {"reference": s, "exudyn": s}."""
-    # the engine packages are heavy optional imports (numba, exudyn): imported here, when used
-    from exudyn_model import modes as exudyn_modes
-    from reference_model import modes as reference_modes
-
+def analyse(case, options: Mapping[str, Mapping[str, Any]] | None = None,
+            engines: Sequence[str] | None = None) -> dict[str, np.ndarray]:
+    """Closed-loop rotor-mode exponents of `case` (at rest, initial configuration) in each
+    engine (default: the default engines), each from its plug-in's `linear_plant` with its
+    `options`: {engine: s}."""
+    options = options or {}
     case = without_orbit(at_rest(case))
     arms = (ArmModel(case.params, 1), ArmModel(case.params, 2))  # arms are numbered 1 and 2
     outputs = _outputs(arms)
@@ -102,9 +103,9 @@ def analyse(case, n_modes=None, n_elements: int = 8) -> dict[str, np.ndarray]:
     ky, kr, alpha = controller_gains(case, q_joint)
     dt = case.solver.control_period
     out = {}
-    for name, plant in (("reference", lambda: reference_modes.linear_plant(case, outputs, N_INPUTS, n_modes=n_modes)),
-                        ("exudyn", lambda: exudyn_modes.linear_plant(case, outputs, N_INPUTS, n_elements=n_elements))):
-        out[name] = rotor_modes(closed_loop_exponents(*plant(), ky, kr, alpha, dt))
+    for name in engines or default_engines():
+        plant = plugin(name).linear_plant(case, outputs, N_INPUTS, **options.get(name, {}))
+        out[name] = rotor_modes(closed_loop_exponents(*plant, ky, kr, alpha, dt))
     return out
 
 
@@ -112,14 +113,12 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.closed_loop",
                                 description=__doc__.split("\n")[0])
     p.add_argument("case", nargs="?", default="p1_rigid_gains")
-    p.add_argument("--modes", type=int, default=None, help="reference modes per link (default: the case's)")
-    p.add_argument("--elements", type=int, default=8, help="Exudyn ANCF elements per link")
     args = p.parse_args(argv)
-    res = analyse(load_case(args.case), args.modes, args.elements)
+    res = analyse(load_case(args.case))
     print(f"{args.case}: closed-loop rotor modes at rest in the initial configuration")
-    print(f"{'f_ref [Hz]':>11s} {'σ_ref [1/s]':>12s} {'f_exu [Hz]':>11s} {'σ_exu [1/s]':>12s}")
-    for a, b in zip(res["reference"], res["exudyn"]):
-        print(f"{a.imag / 2 / np.pi:11.4f} {a.real:+12.5f} {b.imag / 2 / np.pi:11.4f} {b.real:+12.5f}")
+    print("".join(f" {'f ' + e[:8] + ' [Hz]':>15s} {'σ ' + e[:8] + ' [1/s]':>15s}" for e in res))
+    for modes in zip(*res.values()):
+        print("".join(f" {s.imag / 2 / np.pi:15.4f} {s.real:+15.5f}" for s in modes))
     return 0
 
 

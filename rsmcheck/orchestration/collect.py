@@ -37,15 +37,15 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from rsmcheck.core.cases import Case, list_cases, load_case, sibling_case
-from rsmcheck.orchestration.compare import case_rows, check_runs
-from rsmcheck.orchestration.engines import ENGINES
+from rsmcheck.orchestration.compare import case_rows, check_runs, engine_pairs
+from rsmcheck.core.plugins import (available, default_engines, given_settings, plugin, plugin_distributions, plugins,
+                                   with_capability)
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.modes import modes_report
 from rsmcheck.orchestration.runs import Job, get_runs, read_stored, source_digest
 from rsmcheck.core.store import EngineRun, Event, Phase, git_commit, package_versions, write_json
 
 VERDICT = "verdict.json"
-PINOCCHIO = "pinocchio.json"
 MODES = "modes.json"
 MISSION = "mission"
 #: the folder of the run files, under the report's folder
@@ -62,11 +62,11 @@ def run_dir(folder: Path) -> Path:
 # ---------------------------------------------------------------------------------------
 # the report's jobs besides the runs (they share the pool of rsmcheck.orchestration.runs)
 # ---------------------------------------------------------------------------------------
-def pinocchio_rows() -> dict[str, Any]:
-    """The rows of `rsmcheck pinocchio --json` (rigid modes 0 and 2, both arms open)."""
-    from pinocchio_check.compare import run_checks  # the engine is imported lazily: Pinocchio is optional
-
-    return {"checks": [r for n in (0, 2) for r in run_checks(n_modes=n, open_arms=(1, 2))]}
+def rigid_rows(name: str) -> dict[str, Any]:
+    """The rows of checking plug-in `name`'s rigid checks (rigid modes 0 and 2, both arms
+    open): `rsmcheck pinocchio --json` for Pinocchio."""
+    return {"checks": [r for n in (0, 2) for r in plugin(name).rigid_checks(n_modes=n, open_arms=(1, 2))],
+            "checker": name}
 
 
 def modes_rows() -> dict[str, Any]:
@@ -87,7 +87,7 @@ class Collected:
     reused: list[str] = field(default_factory=list)
 
 
-def collect(folder: Path, short: bool = True, engines: Sequence[str] = ENGINES,
+def collect(folder: Path, short: bool = True, engines: Sequence[str] | None = None,
             case_names: Sequence[str] | None = None, progress: Progress | None = None,
             rerun: bool = False, workers: int = 2) -> Collected:
     """Run what is missing or out of date, store it in `folder`, write the verdict.  The
@@ -95,12 +95,14 @@ def collect(folder: Path, short: bool = True, engines: Sequence[str] = ENGINES,
     and stored in folder/runs/), the Pinocchio and eigenfrequency tables ride in the same
     pool."""
     cases = [load_case(n) for n in case_names] if case_names else [load_case(p) for p in list_cases()]
-    engines = list(engines)
+    engines = list(engines or default_engines())
     folder = Path(folder)
     digest = source_digest()
     t0 = time.monotonic()
     res = Collected(folder, cases, short, engines)
-    extra = [Job(name.removesuffix(".json"), fn) for name, fn in ((PINOCCHIO, pinocchio_rows), (MODES, modes_rows))
+    jobs = [(f"{n}.json", rigid_rows, (n,)) for n in with_capability("rigid_checks") if available(n)]
+    jobs.append((MODES, modes_rows, ()))
+    extra = [Job(name.removesuffix(".json"), fn, args) for name, fn, args in jobs
              if rerun or not _stored_current(folder / name, digest)]
     got = get_runs(cases, engines, short, run_dir(folder), rerun=rerun, progress=progress, workers=workers,
                    extra=extra)
@@ -178,16 +180,17 @@ def mission_checks(mission: Case, short: bool, runs: dict[str, EngineRun]) -> li
     """Each phase of the chained mission checked by its own tolerances plus the difference
     the engines carry into it (`rsmcheck.orchestration.compare.check_runs(chained=True)`); rows named
     "mission/PHASE"."""
-    if not {"reference", "exudyn"} <= set(runs):
+    engines = [e for e in plugins() if e in runs]
+    if len(engines) < 2:
         return []
     rows = []
-    ref = phase_runs(mission, short, runs["reference"])
-    exu = phase_runs(mission, short, runs["exudyn"])
-    for (ph, _, a), (_, _, b) in zip(ref, exu):
-        for r in check_runs(ph, a, b, chained=True, specs=phase_specs(mission, short, ph)):
-            d = r.as_dict()
-            d["case"] = f"{mission.name}/{ph.name}"
-            rows.append(d)
+    for first, other in engine_pairs(engines):
+        for (ph, _, a), (_, _, b) in zip(phase_runs(mission, short, runs[first]), phase_runs(mission, short, runs[other])):
+            for r in check_runs(ph, a, b, chained=True, specs=phase_specs(mission, short, ph)):
+                d = r.as_dict()
+                d["case"] = f"{mission.name}/{ph.name}"
+                d["engines"] = [first, other]
+                rows.append(d)
     return rows
 
 
@@ -212,14 +215,13 @@ def provenance(res: Collected, digest: str) -> dict[str, Any]:
     for case in res.cases:
         v = case.variant(res.short)
         settings[case.name] = {"control_period_s": v.solver.control_period, "output_period_s": v.solver.output_period,
-                               "reference": {"integrator": v.solver.integrator, "rtol": v.solver.rtol,
-                                             **v.reference.given()},
-                               "exudyn": v.exudyn.given()}
+                               **given_settings(v.engine_settings)}
     return {
         "commit": commit, "modified": dirty, "source_digest": digest,
         "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "versions": {"python": platform.python_version(),
-                     **package_versions("rsmcheck", "exudyn", "pin", "numpy", "numba", "scipy", "h5py", "plotly")},
+                     **package_versions("rsmcheck", *plugin_distributions(), "numpy", "numba", "scipy", "h5py",
+                                        "plotly")},
         "platform": f"{platform.system()} {platform.release()} {platform.machine()}, {os.cpu_count()} CPUs",
         "short": res.short, "engines": res.engines, "settings": settings, "collect_wall_s": res.wall_s,
         "failures": res.failures, "reused": res.reused,
@@ -240,7 +242,9 @@ def verdict(res: Collected, digest: str) -> dict[str, Any]:
         checks += case_checks(case, res.short, runs)
         if res.short:
             gates += gate_rows(case, runs)
-    pin_path = res.folder / PINOCCHIO
-    pin = json.loads(pin_path.read_text())["checks"] if pin_path.is_file() else []
-    return {"checks": checks, "mission": mission, "gate": gates, "pinocchio": pin,
+    rigid = {}
+    for n in with_capability("rigid_checks"):
+        path = res.folder / f"{n}.json"
+        rigid[n] = json.loads(path.read_text())["checks"] if path.is_file() else []
+    return {"checks": checks, "mission": mission, "gate": gates, "rigid": rigid,
             "provenance": provenance(res, digest)}

@@ -56,7 +56,7 @@ error; the floors are physical sizes, listed in `SCALE_FLOORS` with the reason.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -64,6 +64,7 @@ import numpy as np
 from rsmcheck.core.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES
+from rsmcheck.core.plugins import default_engines
 from rsmcheck.orchestration.runs import get_runs
 from rsmcheck.core.store import EngineRun
 from rsmcheck.core.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
@@ -273,7 +274,7 @@ class Check(_Verdict):
     worst_time: float = float("nan")
     worst_component: int = 0
     reference_range: float = 0.0  # max_t ‖b(t)‖_∞: the size of the observable in the reference
-    #: metric `growth`: σ [1/s] of each run ("reference", "other")
+    #: metric `growth`: σ [1/s] of each run, by engine
     growth_rates: Mapping[str, float] = field(default_factory=dict)
     #: (time, error) of the samples at a constraint switch, left out of the error (MULTIPLIERS)
     at_switches: tuple[tuple[float, float], ...] = ()
@@ -286,6 +287,8 @@ class Check(_Verdict):
     inherited: float = 0.0
     #: the interval [s] the metric looked at (the case's `window`), None: the whole run
     window: tuple[float, float] | None = None
+    #: the engines compared (the model under test, the other)
+    engines: tuple[str, ...] = ()
 
     @property
     def metric_label(self) -> str:
@@ -297,6 +300,8 @@ class Check(_Verdict):
                "tolerance": self.tolerance, "margin": _finite(self.margin), "pass": self.passed,
                "metric": self.metric, "why": self.why, "worst_time": _finite(self.worst_time),
                "worst_component": self.worst_component, "reference_range": _finite(self.reference_range)}
+        if self.engines:
+            out["engines"] = list(self.engines)
         if self.growth_rates:
             out["growth_rates"] = {k: _finite(v) for k, v in self.growth_rates.items()}
         if self.at_switches:
@@ -354,7 +359,7 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
             at_switch = between = skip = np.zeros(0, int)  # a blow-up there is a failure, not a limit
             skew = 0.0
         err, tw, c = difference(reference, other, spec.observable, spec.metric, case.name, spec.window, skip)
-        rates = ({"reference": growth_rate(t, b, spec.window), "other": growth_rate(t, a, spec.window)}
+        rates = ({reference.engine: growth_rate(t, b, spec.window), other.engine: growth_rate(t, a, spec.window)}
                  if spec.metric == "growth" else {})
         at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in at_switch)
         btw = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in between)
@@ -365,15 +370,24 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
     return rows
 
 
-def case_rows(case, short: bool, runs: Mapping[str, EngineRun]) -> list[Check]:
+def engine_pairs(engines: Sequence[str]) -> list[tuple[str, str]]:
+    """The pairs a cross-check compares: the first engine (the model under test) against
+    each of the others."""
+    return [(engines[0], other) for other in engines[1:]]
+
+
+def case_rows(case, short: bool, runs: Mapping[str, EngineRun], engines: Sequence[str] | None = None) -> list[Check]:
     """The cross-check rows of one stand-alone case from its runs (engine → run): its
-    [compare] table applied to the reference and Exudyn runs of the variant (`short`).
-    The one place both `rsmcheck check` and the report's verdict (rsmcheck.orchestration.collect)
-    compute them; [] for a sequence, a case without a table or a missing engine."""
+    [compare] table applied to each pair of `engines` (default: the default engines,
+    rsmcheck.core.plugins.default_engines) of the variant (`short`).  The one place both
+    `rsmcheck check` and the report's verdict (rsmcheck.orchestration.collect) compute them;
+    [] for a sequence, a case without a table or a missing engine."""
     variant = case.variant(short)
-    if case.phases or not variant.compare or not {"reference", "exudyn"} <= set(runs):
+    engines = list(engines or default_engines())
+    if case.phases or not variant.compare or not set(engines) <= set(runs):
         return []
-    return check_runs(variant, runs["reference"], runs["exudyn"])
+    return [replace(r, engines=(a, b)) for a, b in engine_pairs(engines)
+            for r in check_runs(variant, runs[a], runs[b])]
 
 
 def not_checked(case, short: bool) -> str:
@@ -410,14 +424,16 @@ class CaseCheck:
 
 
 def check_cases(cases: Sequence[Any], short: bool, options: Mapping[str, Mapping[str, Any]] | None = None,
-                run_dir=None, *, rerun: bool = False, workers: int = 2, progress=None) -> list[CaseCheck]:
-    """`rsmcheck check`: the runs of both engines from `rsmcheck.orchestration.runs.get_runs`
+                run_dir=None, *, rerun: bool = False, workers: int = 2, progress=None,
+                engines: Sequence[str] | None = None) -> list[CaseCheck]:
+    """`rsmcheck check`: the runs of `engines` (default: the default engines) from `rsmcheck.orchestration.runs.get_runs`
     (stored in and reused from `run_dir` when given, else made in memory), each case's
     rows by `case_rows`.  Every case is looked at before anything runs (`not_checked`); a
     case without rows is returned with `skipped` set and nothing run: it is not a pass."""
     skipped = {c.name: not_checked(c, short) for c in cases}
     todo = [c for c in cases if not skipped[c.name]]
-    got = get_runs(todo, ("reference", "exudyn"), short, run_dir, rerun=rerun, options=options,
+    engines = list(engines or default_engines())
+    got = get_runs(todo, engines, short, run_dir, rerun=rerun, options=options,
                    progress=progress, workers=workers)
     out = []
     for case in cases:
@@ -429,7 +445,7 @@ def check_cases(cases: Sequence[Any], short: bool, options: Mapping[str, Mapping
         res = CaseCheck(case.name, runs=runs, duration=case.variant(short).duration,
                         error=errors[0] if errors else None)
         if res.error is None:
-            res.rows = case_rows(case, short, runs)
+            res.rows = case_rows(case, short, runs, engines)
             res.wall_s = {e: float(r.solver.get("wall_s", float("nan"))) for e, r in runs.items()}
             res.wall_s["total"] = sum(got.wall_s.get((case.name, e), 0.0) for e in runs)
         out.append(res)

@@ -1,22 +1,24 @@
 """Fault injection: which checks of the suite catch which plausible modelling bugs.
 
 `make faults` (not in CI; ≈ 20 min on 2 cores) = ``python -m rsmcheck.orchestration.faults``.  Each
-fault of `FAULTS` is one textual change (an exact string that must occur once) applied to
-a temporary copy of the tree; in that copy the short variants of `CASES` are run by the
+fault of the `catalogue` (each engine plug-in's own `faults()`, the shared ones, the
+controls) is one textual change (an exact string that must occur once) applied to a
+temporary copy of the tree; in that copy the short variants of `CASES` are run by the
 engines the fault can affect, and four kinds of check look at them:
 
-* **cross-check**: the case's `[compare]` rows, reference against Exudyn.  When only one
+* **cross-check**: the case's `[compare]` rows, the first default engine against the
+  others (rsmcheck.core.plugins.default_engines).  When only one
   engine is faulted, the other engine's run is its unfaulted *baseline* run: both engines
   run the cases once on the unfaulted copy before the faults (every sample, so that a
   metric such as `growth` sees the same grid; the baseline's own cross-check must pass,
   else every catch would be meaningless and the driver stops);
-* **Pinocchio**: `pinocchio_check.compare.run_checks` (rigid kinematics and dynamics of the
-  reference, 20 seeded states per chain, rigid and with modes), for faults that reach the
-  reference;
+* **rigid**: each checking plug-in's `rigid_checks` (Pinocchio: rigid kinematics and
+  dynamics, 20 seeded states per chain, rigid and with modes), for faults that reach the
+  engine it checks;
 * **gate**: each re-run engine against its golden (docs/gate.md);
-* **analytic**: the reference model's tests against analytic references (`ANALYTIC_TESTS`:
-  conservation of energy and momentum, the Baumgarte decay of eq. (12), Table 2's
-  frequencies), run by pytest in the copy, for faults that reach the reference.
+* **analytic**: the tests of each reached engine against analytic references (its
+  plug-in's `analytic_tests`; the reference's: conservation of energy and momentum, the
+  Baumgarte decay of eq. (12), Table 2's frequencies), run by pytest in the copy.
 
 The catch matrix goes to docs/data/faults.json and into the report.  The control fault
 ("noop_commuted_sum") changes code without changing arithmetic and must be caught by
@@ -44,6 +46,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from rsmcheck.core.cases import Case, load_case
+from rsmcheck.core.plugins import Fault, default_engines, make_engine, plugin, plugins, simulators, with_capability
 from rsmcheck.orchestration.compare import check_runs
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.runs import Job, expected_wall, run_engine, run_jobs
@@ -55,90 +58,44 @@ OUT = ROOT / "docs" / "data" / "faults.json"
 #: the cases every fault is tried on: fast short variants that together exercise every
 #: mechanism (open/closed chain, capture-free release, bistop, orbit, thrust, growth)
 CASES = ("p1_rigid_gains", "flex_arm_step", "release", "gravity_gradient", "wrist_bistop", "thrust_burn")
-PINOCCHIO_STATES = 20
-#: the reference model's tests against analytic references (pytest node ids, ~30 s)
-ANALYTIC_TESTS = ("tests/reference_model/test_conservation.py", "tests/reference_model/test_link_modes.py")
+RIGID_STATES = 20
 #: the checks of the catch matrix, in its order
-CHECKS = ("crosscheck", "pinocchio", "gate", "analytic")
+CHECKS = ("crosscheck", "rigid", "gate", "analytic")
 #: where the driver's copy keeps the unfaulted runs of CASES (relative to the copy's root)
 BASELINE_DIR = ".faults_baseline"
 
 
 @dataclass(frozen=True)
-class Fault:
-    """One plausible bug: `old` → `new` in `path` (relative to the tree's root)."""
+class Injected:
+    """A fault of the matrix and where it lives: `layer` is the plug-in whose code it is in,
+    "shared" (read by every engine: parameters, controllers, case files) or "none" (the
+    control, a change that changes no arithmetic)."""
 
-    name: str
-    layer: str  # "reference", "exudyn" or "shared" (both engines read it)
-    path: str
-    old: str
-    new: str
-    what: str
+    fault: Fault
+    layer: str
 
 
-FAULTS: tuple[Fault, ...] = (
-    # ---- the reference model ---------------------------------------------------------
-    Fault("ref_coriolis_factor", "reference", "reference_model/core.py",
-          "V[0] = w * w * (c * s1x - s * s1y) + 2.0 * w * c * pbd",
-          "V[0] = w * w * (c * s1x - s * s1y) + 1.0 * w * c * pbd",
-          "Coriolis term 2θ̇ A S e_y (φ̄·ȧ) of a link's x force with factor 1 instead of 2"),
-    Fault("ref_rotary_inertia", "reference", "reference_model/core.py",
-          "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_I0]",
-          "the links' rotary inertia beyond the slender beam (J_extra) left out"),
-    Fault("ref_kelvin_voigt_half", "reference", "reference_model/core.py",
-          "kf += m.k_ff[i, b, a, e] * (q[o + e] + sc[S_ETA] * qd[o + e])",
-          "kf += m.k_ff[i, b, a, e] * (q[o + e] + 0.5 * sc[S_ETA] * qd[o + e])",
-          "Kelvin–Voigt coefficient η = ζ/ω₁ instead of 2ζ/ω₁ (half the structural damping)"),
-    Fault("ref_tidal_exponent", "reference", "reference_model/field.py",
-          "f = -math.expm1(-1.5 * math.log1p(qv))", "f = -math.expm1(-1.45 * math.log1p(qv))",
-          "gravity-gradient law: (1+q)^(−1.45) instead of (1+q)^(−3/2) (tidal coefficient 2.9 instead of 3)"),
-    Fault("ref_mass_flow_g0", "reference", "reference_model/core.py",
-          "dx[2 * ns + 4] = u[U_THRUST] / m.sc[S_ISPG0]",
-          "dx[2 * ns + 4] = u[U_THRUST] / (m.sc[S_ISPG0] * 9.81 / 9.80665)",
-          "mass flow T/(Isp g0) with g0 = 9.81 instead of 9.80665 m/s²"),
-    Fault("ref_thrust_direction", "reference", "reference_model/core.py",
-          "f[0] += mB * aunif[0] + thrust * cb", "f[0] += mB * aunif[0] + thrust * cb * 0.99",
-          "thrust x component 1 % short (a misaligned nozzle in one engine only)"),
-    Fault("ref_baumgarte_damping", "reference", "reference_model/core.py",
-          "- 2.0 * sc[S_ALPHA] * phid[row + d]", "- sc[S_ALPHA] * phid[row + d]",
-          "Baumgarte eq. (12): φ̈ + α φ̇ + β² φ instead of φ̈ + 2α φ̇ + β² φ"),
-    Fault("ref_modal_stiffness", "reference", "reference_model/beam_modes.py",
-          "k_ff = ei * (phi2.T * w) @ phi2", "k_ff = 1.02 * ei * (phi2.T * w) @ phi2",
-          "modal stiffness 2 % high (a wrong EI in the reference's modal integrals)"),
-    Fault("ref_modal_mass", "reference", "reference_model/beam_modes.py",
-          "m_ff = rho_a * (phi.T * w) @ phi", "m_ff = 1.02 * rho_a * (phi.T * w) @ phi",
-          "modal mass 2 % high"),
-    Fault("ref_basis_switch_drops_momentum", "reference", "reference_model/switching.py",
-          "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, report.dropped_momentum)",
-          "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, None)",
-          "release: the generalised momentum the PF basis cannot carry is dropped, not given back"),
-    # ---- the Exudyn model ------------------------------------------------------------
-    Fault("exu_rotor_inertia", "exudyn", "exudyn_model/build.py",
-          "M[6, 6] = mo.inertia", "M[6, 6] = 0.9 * mo.inertia",
-          "Exudyn: gear-motor rotor inertia B_m 10 % low"),
-    Fault("exu_hub_inertia", "exudyn", "exudyn_model/build.py",
-          "inertia=p.link.inertia_extra))", "inertia=0.0))",
-          "Exudyn: the links' extra rotary inertia (hub body) left out"),
-    Fault("exu_bistop_stiffness", "exudyn", "exudyn_model/build.py",
-          "limitStopsStiffness=w.stiffness,", "limitStopsStiffness=0.5 * w.stiffness,",
-          "Exudyn: wrist bistop stiffness halved"),
-    # ---- shared inputs: both engines move together -------------------------------------
-    Fault("params_link_mass", "shared", "rsmcheck/core/params.py",
+#: faults in what every engine reads; the engines' own come from their plug-ins (`faults()`)
+SHARED_FAULTS: tuple[Fault, ...] = (
+    Fault("params_link_mass", "rsmcheck/core/params.py",
           'mass: float = _p(36.49, "Table 1.")', 'mass: float = _p(36.59, "Table 1.")',
           "parameter set: link mass 36.59 kg instead of 36.49 kg (Table 1 typo)"),
-    Fault("controller_rate_filter", "shared", "rsmcheck/driver/controllers.py",
+    Fault("controller_rate_filter", "rsmcheck/driver/controllers.py",
           "alpha = 1.0 - math.exp(-2.0 * math.pi * fc * dt) if fc > 0 else 1.0",
           "alpha = 1.0 - math.exp(-math.pi * fc * dt) if fc > 0 else 1.0",
           "controller: the rate filter's corner at f_c/2 (ω = π f_c instead of 2π f_c)"),
-    Fault("case_flex_arm_step_torque", "shared", "cases/flex_arm_step.toml",
+    Fault("case_flex_arm_step_torque", "cases/flex_arm_step.toml",
           "motor_torques = [0.0, 0.0, 0.0, 10.0, 0.0, 0.0]",
           "motor_torques = [0.0, 0.0, 0.0, 10.5, 0.0, 0.0]",
           "case file: flex_arm_step's shoulder torque 10.5 N·m instead of 10"),
-    # ---- control: a code change that changes no arithmetic ----------------------------
-    Fault("noop_commuted_sum", "none", "reference_model/core.py",
-          "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_JEX] + sc[S_I0]",
-          "control: a commuted sum (exact in IEEE arithmetic); must be caught by nothing"),
 )
+def catalogue() -> list[Injected]:
+    """Every fault: each engine plug-in's own, the shared ones, and the controls (a plug-in's
+    fault whose name starts with "noop_": code changed, arithmetic not; caught by nothing)."""
+    own = [(f, name) for name in simulators() for f in plugin(name).faults()]
+    out = [Injected(f, name) for f, name in own if not f.name.startswith("noop_")]
+    out += [Injected(f, "shared") for f in SHARED_FAULTS]
+    return out + [Injected(f, "none") for f, _ in own if f.name.startswith("noop_")]
 
 
 # ---------------------------------------------------------------------------------------
@@ -195,7 +152,8 @@ def run_baseline(tree: Path) -> None:
                            "mean anything: " + "; ".join(failed))
 
 
-def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
+def run_fault(item: Injected, tree: Path, progress=print) -> dict:
+    fault = item.fault
     apply(fault, tree)
     t0 = time.monotonic()
     try:
@@ -205,7 +163,7 @@ def run_fault(fault: Fault, tree: Path, progress=print) -> dict:
     if proc.returncode != 0:
         raise RuntimeError(f"fault {fault.name}: the probe failed:\n{proc.stderr[-3000:]}")
     result = json.loads(proc.stdout.strip().splitlines()[-1])
-    result.update(asdict(fault), wall_s=round(time.monotonic() - t0, 1))
+    result.update(asdict(fault), layer=item.layer, wall_s=round(time.monotonic() - t0, 1))
     result["caught_by"] = [k for k in CHECKS if result[k]]
     progress(f"{fault.name}: caught by {', '.join(result['caught_by']) or 'NOTHING'} "
              f"({result['wall_s']:.0f} s)")
@@ -227,14 +185,14 @@ def main(argv=None) -> int:
     if args.command == "baseline":
         print(json.dumps(baseline()))
         return 0
-    faults = [_by_name(n) for n in args.names] if args.names else list(FAULTS)
+    faults = [_by_name(n) for n in args.names] if args.names else catalogue()
     tree = make_copy(ROOT, Path(args.tree))
     print(f"fault injection: {len(faults)} faults on a copy in {tree}; cases {', '.join(CASES)}", flush=True)
     t0 = time.monotonic()
     run_baseline(tree)
     print(f"baseline: both engines unfaulted, cross-check passes ({time.monotonic() - t0:.0f} s)", flush=True)
     results = [run_fault(f, tree, lambda s: print(s, flush=True)) for f in faults]
-    doc = {"cases": list(CASES), "pinocchio_states": PINOCCHIO_STATES, "commit": git_commit()[0],
+    doc = {"cases": list(CASES), "rigid_states": RIGID_STATES, "commit": git_commit()[0],
            "faults": results}
     out = write_json(Path(args.out), doc)
     missed = [r["name"] for r in results if r["layer"] != "none" and not r["caught_by"]]
@@ -244,12 +202,12 @@ def main(argv=None) -> int:
     return 1 if missed or false else 0
 
 
-def _by_name(name: str) -> Fault:
-    for f in FAULTS:
-        if f.name == name:
-            return f
+def _by_name(name: str) -> Injected:
+    for item in catalogue():
+        if item.fault.name == name:
+            return item
     raise SystemExit(f"rsmcheck.orchestration.faults: unknown fault {name!r} "
-                     f"(known: {', '.join(f.name for f in FAULTS)})")
+                     f"(known: {', '.join(i.fault.name for i in catalogue())})")
 
 
 # ---------------------------------------------------------------------------------------
@@ -257,11 +215,9 @@ def _by_name(name: str) -> Fault:
 # ---------------------------------------------------------------------------------------
 def _run_cases(engines: list[str]) -> tuple[list[Case], dict[tuple[str, str], EngineRun]]:
     """The short variants of CASES run by `engines` in this tree: (variants, (case, engine) → run)."""
-    if "reference" in engines:  # compile the core once, in this process, before the workers
-        from reference_model.engine import ReferenceEngine  # engines are imported lazily: heavy, optional
-
+    for name in engines:  # compile each engine once, in this process, before the workers
         c = load_case("p1_rigid_gains").variant(True)
-        run(ReferenceEngine(c), c, 0.002)
+        run(make_engine(name, c), c, 0.002)
     variants = [load_case(n).variant(True) for n in CASES]
     jobs = [Job(f"{v.name} / {e}", run_engine, (e, v), expected_wall(v, e), (v.name, e))
             for v in variants for e in engines]
@@ -273,25 +229,26 @@ def _run_cases(engines: list[str]) -> tuple[list[Case], dict[tuple[str, str], En
 
 
 def _crosscheck(v: Case, pair: dict[str, EngineRun]) -> list[str]:
-    failed = [c for c in check_runs(v, pair["reference"], pair["exudyn"]) if not c.passed]
+    first, *others = [e for e in default_engines() if e in pair]
+    failed = [c for o in others for c in check_runs(v, pair[first], pair[o]) if not c.passed]
     return [f"{v.name}: {c.observable} {c.error:.2e} > {c.tolerance:.1e}" for c in failed]
 
 
 def baseline() -> dict:
     """Run CASES unfaulted in both engines, store the runs (BASELINE_DIR) and cross-check them."""
-    variants, runs = _run_cases(["reference", "exudyn"])
+    variants, runs = _run_cases(list(default_engines()))
     out: dict[str, list[str]] = {"crosscheck": []}
     for v in variants:
-        pair = {e: runs[(v.name, e)] for e in ("reference", "exudyn")}
+        pair = {e: runs[(v.name, e)] for e in default_engines()}
         write_run(Path(BASELINE_DIR) / f"{v.name}.h5", pair, case_name=v.name, case_hash=v.file_hash,
                   param_hash=v.params.digest())
         out["crosscheck"] += _crosscheck(v, pair)
     return out
 
 
-def probe(fault: Fault) -> dict:
+def probe(item: Injected) -> dict:
     """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
-    engines = {"reference": ["reference"], "exudyn": ["exudyn"]}.get(fault.layer, ["reference", "exudyn"])
+    engines = [item.layer] if item.layer in plugins() else list(default_engines())
     variants, runs = _run_cases(engines)
     out: dict[str, list[str]] = {k: [] for k in CHECKS}
     for v in variants:
@@ -305,14 +262,16 @@ def probe(fault: Fault) -> dict:
         # one engine faulted: the other engine's unfaulted baseline run of the same case
         pair = new if len(new) == 2 else {**read_run(Path(BASELINE_DIR) / f"{v.name}.h5")[0], **new}
         out["crosscheck"] += _crosscheck(v, pair)
-    if fault.layer in ("reference", "shared", "none"):
-        from pinocchio_check.compare import run_checks  # engines are imported lazily: Pinocchio is optional
-
+    reached = set(engines) if item.layer in plugins() else set(plugins())
+    for name in with_capability("rigid_checks"):  # a checker of an engine the fault reaches
+        if plugin(name).checks_engine not in reached:
+            continue
         for n_modes in (0, 2):
-            rows = run_checks(n_states=PINOCCHIO_STATES, first_seed=0, n_modes=n_modes, open_arms=(1, 2))
-            out["pinocchio"] += sorted({f"{r['quantity']} ({r['chain']}, {n_modes} modes)"
-                                        for r in rows if not r["pass"]})
-        out["analytic"] = _failed_tests(ANALYTIC_TESTS)
+            rows = plugin(name).rigid_checks(n_states=RIGID_STATES, first_seed=0, n_modes=n_modes, open_arms=(1, 2))
+            out["rigid"] += sorted({f"{name}: {r['quantity']} ({r['chain']}, {n_modes} modes)"
+                                    for r in rows if not r["pass"]})
+    tests = [t for e in sorted(reached & set(simulators())) for t in getattr(plugin(e), "analytic_tests", ())]
+    out["analytic"] = _failed_tests(tuple(tests)) if tests else []
     return out
 
 

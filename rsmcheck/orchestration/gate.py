@@ -26,7 +26,8 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   A changed case file or parameter set is reported as such (the run then has no golden to
   be compared with, and is "inputs changed", exit 1 until blessed).
 * A run also moved when it did more work than its golden: a counter of its solver (the
-  reference's attempted steps, Exudyn's Newton iterations, …: `WORK_COUNTERS`) above the
+  reference's attempted steps, Exudyn's Newton iterations, …: each plug-in's
+  `work_counters`) above the
   golden's by more than `WORK_TOL` and `WORK_SLACK`.  Work is counted, never timed: the
   counts of the same code repeat exactly on one machine and move by at most ~1 % under
   round-off, its wall time by several per cent from run to run.
@@ -46,7 +47,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from rsmcheck.core.cases import first_given, list_cases, load_case
+from rsmcheck.core.cases import list_cases, load_case
+from rsmcheck.core.plugins import plugins, step_perturbed_settings
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.runs import GOLDEN_DIR, Job, expected_wall, get_runs, golden_path, run_engine, run_jobs
@@ -77,10 +79,6 @@ ABS_FLOOR = 1e-14
 EVENT_TIME_TOL = 1e-9
 #: the work of a run, from the counters in its solver settings (`EngineRun.solver`): per
 #: engine, a label and the counters summed into it
-WORK_COUNTERS = {
-    "reference": (("attempted steps", ("steps", "rejected_steps")), ("Jacobians", ("jacobians",))),
-    "exudyn": (("steps", ("steps",)), ("Newton iterations", ("newton_iterations",)), ("Jacobians", ("jacobians",))),
-}
 #: a counter may exceed its golden's by WORK_TOL of it plus WORK_SLACK: 4 × the largest spread
 #: that round-off causes (Exudyn's Newton iterations in p1_transport, +1.25 % under the mass
 #: perturbation; the reference's attempted steps 0.7 % under the step perturbation), and
@@ -123,7 +121,7 @@ class Moved:
 class WorkChange:
     """One work counter of one run against its golden's."""
 
-    counter: str  # its label in `WORK_COUNTERS`
+    counter: str  # its label (`WorkCounter.label` of the engine's plug-in)
     golden: int
     new: int
 
@@ -356,13 +354,14 @@ def _events(run: EngineRun) -> list[tuple[str, str, float]]:
 
 
 def work_changes(run: EngineRun, golden_run: EngineRun) -> list[WorkChange]:
-    """Each work counter of `WORK_COUNTERS` that both runs' solver settings hold (a golden
-    blessed before a counter existed is not compared on it)."""
+    """Each work counter of the run's engine plug-in (`work_counters`) that both runs'
+    solver settings hold (a golden blessed before a counter existed is not compared on it)."""
     out = []
-    for label, keys in WORK_COUNTERS.get(run.engine, ()):
-        if all(k in run.solver and k in golden_run.solver for k in keys):
-            out.append(WorkChange(label, sum(int(golden_run.solver[k]) for k in keys),
-                                  sum(int(run.solver[k]) for k in keys)))
+    counters = plugins()[run.engine].work_counters if run.engine in plugins() else ()
+    for c in counters:
+        if all(k in run.solver and k in golden_run.solver for k in c.keys):
+            out.append(WorkChange(c.label, sum(int(golden_run.solver[k]) for k in c.keys),
+                                  sum(int(run.solver[k]) for k in c.keys)))
     return out
 
 
@@ -418,14 +417,12 @@ def perturbed_case(case):
 
 
 def step_perturbed_case(case):
-    """`case` with the tolerances behind each engine's discrete decisions scaled by
-    (1 + STEP_PERTURBATION), at the same accuracy: its relative tolerance (the reference's
-    step sequence: other accept/reject decisions) and Exudyn's absolute Newton tolerance
-    (`exudyn.newton_atol_scale`: other steps where the iteration stops)."""
-    return dataclasses.replace(
-        case, solver=dataclasses.replace(case.solver, rtol=case.solver.rtol * (1.0 + STEP_PERTURBATION)),
-        exudyn=dataclasses.replace(case.exudyn, newton_atol_scale=first_given(case.exudyn.newton_atol_scale, 1.0)
-                                   * (1.0 + STEP_PERTURBATION)))
+    """`case` with the tolerance behind each engine's discrete decisions scaled by
+    (1 + STEP_PERTURBATION), at the same accuracy (each plug-in's `step_perturbed`: the
+    reference's relative tolerance, another sequence of accepted and rejected steps;
+    Exudyn's absolute Newton tolerance, other steps where the iteration stops)."""
+    return dataclasses.replace(case, engine_settings=step_perturbed_settings(case.engine_settings,
+                                                                             1.0 + STEP_PERTURBATION))
 
 
 def summarize_change(old: Golden | None, new_run: EngineRun, case) -> list[str]:

@@ -1,35 +1,25 @@
-"""`rsmcheck modes`: link and arm eigenfrequencies — analytic, reference, Exudyn.
+"""`rsmcheck modes`: link and arm eigenfrequencies — analytic and each engine's.
 
-Links (one link, basis PP = pinned-pinned, PF = pinned-free, modes 1–2):
-
-* analytic: Euler–Bernoulli, f_j = (β_j L)² sqrt(EI/ρA) / (2π L²), with EI derived from
-  Table 2's PP f1 (docs/physics.md §2; `rsmcheck.core.params`), βL = jπ (PP) or the roots of
-  tan βL = tanh βL (PF), from `rsmcheck.core.beams`;
-* reference: the generalised eigenvalues of the reference's modal stiffness and mass
-  matrices K_ff, M_ff (`reference_model.beam_modes.modal_basis`, quadrature of the scaled
-  shapes: it checks the shapes and integrals the reference simulates with);
-* Exudyn: the link as ANCF cable elements, pinned ends removed, Exudyn's own eigenvalue
-  solver (`exudyn_model.links.link_frequencies`).
+Links (one link, basis PP = pinned-pinned, PF = pinned-free, modes 1–2): the analytic
+Euler–Bernoulli frequencies f_j = (β_j L)² sqrt(EI/ρA) / (2π L²), with EI derived from
+Table 2's PP f1 (docs/physics.md §2; `rsmcheck.core.params`), βL = jπ (PP) or the roots of
+tan βL = tanh βL (PF), from `rsmcheck.core.beams`; against them each engine plug-in's
+`link_frequencies` (the reference: its modal matrices' generalised eigenvalues; Exudyn:
+the meshed link's eigenvalues from its own solver).
 
 Arms (the whole robot linearised at rest in a case's initial configuration, undamped,
-orbit off): each engine's `modes.coupled_frequencies` (the same function in both packages,
-rsmcheck/core/engine.py) — the reference's ODE linearised by central differences of its
-right-hand side (the oscillatory eigenvalues; Baumgarte's real ones drop out), against
-Exudyn's eigenvalues of its own M, K on the constraint null space.  The Exudyn numbers come
-from Exudyn alone.
+orbit off): each plug-in's `coupled_frequencies`, computed by each engine from its own
+equations alone (rsmcheck.core.plugins).
 """
 
 from __future__ import annotations
 
-import math
-from typing import Any, Sequence
-
-import numpy as np
-from scipy.linalg import eigh
+from typing import Any, Mapping, Sequence
 
 from rsmcheck.core.beams import analytic_frequencies
 from rsmcheck.core.cases import at_rest, load_case, undamped, without_orbit
 from rsmcheck.core.params import TABLE2_HZ, Params
+from rsmcheck.core.plugins import default_engines, plugin
 
 #: (name, case, what it is) of the configurations `rsmcheck modes` linearises
 CONFIGURATIONS = (
@@ -41,31 +31,24 @@ CONFIGURATIONS = (
 N_ARM_MODES = 6
 
 
-def reference_link_hz(params, basis: str, n: int = 2) -> np.ndarray:
-    # the engine packages are heavy optional imports: imported here, when used
-    from reference_model.beam_modes import PF, PP, modal_basis
-
-    link = params.link
-    b = modal_basis(PP if basis == "PP" else PF, max(n, 2), link.length, link.rho_a, link.ei)
-    lam = eigh(b.k_ff, b.m_ff, eigvals_only=True)
-    return np.sqrt(np.sort(lam)[:n]) / (2 * math.pi)
-
-
-def link_rows(params=None, n_elements: int | None = None) -> list[dict[str, Any]]:
-    # the engine packages are heavy optional imports: imported here, when used
-    from exudyn_model import links
-
+def link_rows(params=None, options: Mapping[str, Mapping[str, Any]] | None = None,
+              engines: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """One row per basis and mode: Table 2, the analytic frequency, and each engine's
+    (`link_frequencies` of its plug-in, with its `options`) with its relative error:
+    keys "ENGINE_hz", "ENGINE_rel"."""
     params = params or Params()
-    n_el = n_elements or links.N_ELEMENTS_DEFAULT
+    options = options or {}
+    engines = [e for e in (engines or default_engines()) if getattr(plugin(e), "link_frequencies", None)]
     rows = []
     for basis in ("PP", "PF"):
-        fa, fr = analytic_frequencies(params.link, basis), reference_link_hz(params, basis)
-        fx = links.link_frequencies(params, basis, n_el)
+        fa = analytic_frequencies(params.link, basis)
+        f = {e: plugin(e).link_frequencies(params, basis, 2, **options.get(e, {})) for e in engines}
         for j in range(2):
-            rows.append({"basis": basis, "mode": j + 1, "analytic_hz": float(fa[j]), "reference_hz": float(fr[j]),
-                         "exudyn_hz": float(fx[j]), "table2_hz": TABLE2_HZ[basis][j],
-                         "reference_rel": float(fr[j] / fa[j] - 1), "exudyn_rel": float(fx[j] / fa[j] - 1),
-                         "exudyn_elements": n_el})
+            row = {"basis": basis, "mode": j + 1, "analytic_hz": float(fa[j]), "table2_hz": TABLE2_HZ[basis][j]}
+            for e in engines:
+                row[f"{e}_hz"] = float(f[e][j])
+                row[f"{e}_rel"] = float(f[e][j] / fa[j] - 1)
+            rows.append(row)
     return rows
 
 
@@ -75,25 +58,26 @@ def modal_case(case):
 
 
 def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n: int = N_ARM_MODES,
-             n_modes=None, n_elements: int | None = None) -> list[dict[str, Any]]:
-    # the engine packages are heavy optional imports (numba, exudyn): imported here, when used
-    from exudyn_model import links
-    from exudyn_model import modes as exudyn_modes
-    from reference_model import modes as reference_modes
-
+             options: Mapping[str, Mapping[str, Any]] | None = None,
+             engines: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """The first `n` coupled frequencies of each configuration in each engine
+    (`coupled_frequencies` of its plug-in): keys "ENGINE_hz", and `rel_difference` of the
+    second engine against the first (the model under test)."""
+    options = options or {}
+    engines = [e for e in (engines or default_engines()) if getattr(plugin(e), "coupled_frequencies", None)]
     rows = []
     for label, case_name, what in configurations:
         case = modal_case(load_case(case_name))
-        fr = reference_modes.coupled_frequencies(case, n, n_modes=n_modes)
-        fx = exudyn_modes.coupled_frequencies(case, n, n_elements=n_elements or links.N_ELEMENTS_DEFAULT)
-        for j in range(min(len(fr), len(fx))):
-            rows.append({"configuration": label, "case": case_name, "description": what, "mode": j + 1,
-                         "reference_hz": float(fr[j]), "exudyn_hz": float(fx[j]),
-                         "rel_difference": float(fx[j] / fr[j] - 1),
-                         "reference_modes": list(case.n_modes) if n_modes is None else n_modes})
+        f = {e: plugin(e).coupled_frequencies(case, n, **options.get(e, {})) for e in engines}
+        for j in range(min(len(v) for v in f.values())):
+            row = {"configuration": label, "case": case_name, "description": what, "mode": j + 1}
+            row.update({f"{e}_hz": float(f[e][j]) for e in engines})
+            if len(engines) > 1:
+                row["rel_difference"] = float(f[engines[1]][j] / f[engines[0]][j] - 1)
+            rows.append(row)
     return rows
 
 
-def modes_report(n_modes=None, n_elements: int | None = None) -> dict[str, Any]:
+def modes_report(options: Mapping[str, Mapping[str, Any]] | None = None) -> dict[str, Any]:
     """The JSON object of `rsmcheck modes --json` (README, command line)."""
-    return {"links": link_rows(n_elements=n_elements), "arms": arm_rows(n_modes=n_modes, n_elements=n_elements)}
+    return {"links": link_rows(options=options), "arms": arm_rows(options=options)}

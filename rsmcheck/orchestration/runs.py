@@ -22,6 +22,7 @@ runs go through the same pool.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 import multiprocessing
 import pickle
@@ -36,15 +37,15 @@ from typing import Any, Callable, Mapping, Sequence
 from rsmcheck.core.cases import Case, load_case, sibling_case
 from rsmcheck.core.errors import InputError, SimulationDiverged
 from rsmcheck.orchestration.chain import run_mission
-from rsmcheck.orchestration.engines import ENGINES, make_engine
+from rsmcheck.core.plugins import default_engines, make_engine, plugins
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import EngineRun, read_run, write_run
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the gate's golden runs (rsmcheck.orchestration.gate), one file per case and engine
 GOLDEN_DIR = ROOT / "goldens"
-#: the packages whose sources make a run what it is
-SOURCE_PACKAGES = ("rsmcheck", "reference_model", "exudyn_model", "pinocchio_check")
+#: the package whose sources make a run what it is, besides each plug-in's own package
+SOURCE_PACKAGES = ("rsmcheck",)
 #: modules of rsmcheck that orchestrate, compare or report: no run depends on them (the
 #: verdict is recomputed from the runs every time)
 NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/orchestration/collect.py", "rsmcheck/orchestration/bench.py",
@@ -56,18 +57,26 @@ Progress = Callable[[str], None]
 
 
 def source_digest(root: Path | None = None) -> str:
-    """sha256 over the names and contents of the .py files of SOURCE_PACKAGES that runs
-    depend on (all but NOT_IN_RUNS): a run made by other code is not reused."""
-    root = root or ROOT
+    """sha256 over the names and contents of the .py files that runs depend on: those of
+    SOURCE_PACKAGES and of every registered plug-in's package (all but NOT_IN_RUNS), found
+    under `root` where given, else where they are imported from: a run made by other code
+    is not reused."""
     h = hashlib.sha256()
-    for pkg in SOURCE_PACKAGES:
-        for path in sorted((root / pkg).rglob("*.py")):
-            name = path.relative_to(root).as_posix()
+    packages = sorted({*SOURCE_PACKAGES, *(type(p).__module__.split(".")[0] for p in plugins().values())})
+    for pkg in packages:
+        folder = Path(root) / pkg if root is not None else _package_folder(pkg)
+        for path in sorted(folder.rglob("*.py")):
+            name = f"{pkg}/{path.relative_to(folder).as_posix()}"
             if name in NOT_IN_RUNS:
                 continue
             h.update(name.encode())
             h.update(path.read_bytes())
     return h.hexdigest()
+
+
+def _package_folder(package: str) -> Path:
+    spec = importlib.util.find_spec(package)
+    return Path(next(iter(spec.submodule_search_locations)))
 
 
 def golden_path(case_name: str, engine: str, root: Path = GOLDEN_DIR) -> Path:
@@ -246,7 +255,7 @@ def store_runs(run_dir: Path, case: Case, short: bool, runs: Mapping[str, Engine
                options: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
     """Write `runs` (engine → run) of `case` to run_dir/CASE.h5 with what makes them valid:
     case and parameter hashes, variant, source digest, each engine's options."""
-    order = [e for e in ENGINES if e in runs] + [e for e in runs if e not in ENGINES]
+    order = [e for e in plugins() if e in runs] + [e for e in runs if e not in plugins()]
     return write_run(run_path(run_dir, case), {e: runs[e] for e in order}, case_name=case.name,
                      case_hash=case.file_hash, param_hash=case.params.digest(),
                      extra_attrs={"short": bool(short), "source_digest": digest or source_digest(),

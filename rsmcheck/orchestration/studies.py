@@ -47,7 +47,7 @@ from rsmcheck.core.cases import OrbitSpec, load_case
 from rsmcheck.core.errors import exit_code
 from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.compare import SCALE_FLOORS, check_runs, compare_runs
-from rsmcheck.orchestration.engines import make_engine
+from rsmcheck.core.plugins import make_engine
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import read_run, write_json
 

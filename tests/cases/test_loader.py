@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from rsmcheck.core.cases import ExudynSettings, ReferenceSettings, load_case
+from exudyn_model.settings import ExudynSettings
+from reference_model.settings import ReferenceSettings
+from rsmcheck.core.cases import load_case
 from rsmcheck.core.errors import InputError
 
 VALID = """\
@@ -67,29 +69,29 @@ def test_valid_case_loads(tmp_path):
     assert case.initial.base_rate == (0.0, 0.0, 0.01)
     assert case.controller.kind == "constant" and case.controller.motor_torques[0] == 1.0
     assert case.solver.output_every == 10
-    assert case.n_modes == (2,) * 6
+    assert case.engine_settings["reference"].n_modes == (2,) * 6
     assert case.params.link.damping_ratio == 0.02
     assert case.params.link.mass == 36.49  # untouched defaults stay
     assert case.path == str(path)
     assert len(case.file_hash) == 64
     assert case.run_duration(True) == 1.0 and case.run_duration(False) == 2.0
-    assert case.exudyn == ExudynSettings() and case.exudyn.given() == {}
+    assert case.engine_settings["exudyn"] == ExudynSettings() and case.engine_settings["exudyn"].given() == {}
 
 
 def test_exudyn_table_sets_the_engine_discretisation(tmp_path):
     text = VALID + '[exudyn]\nsubsteps = 32\nn_elements = 4\nwhy = "the step study"\n'
     case = load_case(write(tmp_path, text, "good"))
-    assert case.exudyn.given() == {"substeps": 32, "n_elements": 4}
-    assert case.exudyn.why == "the step study"
-    assert case.variant(True).exudyn.given() == {"substeps": 32, "n_elements": 4}
+    assert case.engine_settings["exudyn"].given() == {"substeps": 32, "n_elements": 4}
+    assert case.engine_settings["exudyn"].why == "the step study"
+    assert case.variant(True).engine_settings["exudyn"].given() == {"substeps": 32, "n_elements": 4}
 
 
 def test_exudyn_table_sets_the_integrator(tmp_path):
     text = (VALID + '[exudyn]\nconstraints = "index2"\nrestart_threshold = 0.0\nnewton_atol = 1e-3\n'
             'why = "the ZOH study"\n')
     case = load_case(write(tmp_path, text, "good"))
-    assert case.exudyn.given() == {"constraints": "index2", "restart_threshold": 0.0, "newton_atol": 1e-3}
-    assert (case.exudyn.constraints, case.exudyn.substeps) == ("index2", None)
+    assert case.engine_settings["exudyn"].given() == {"constraints": "index2", "restart_threshold": 0.0, "newton_atol": 1e-3}
+    assert (case.engine_settings["exudyn"].constraints, case.engine_settings["exudyn"].substeps) == ("index2", None)
 
 
 def test_growth_metric_takes_a_window(tmp_path):
@@ -108,14 +110,14 @@ def test_max_abs_takes_an_optional_window(tmp_path):
 def test_reference_table_sets_the_largest_step(tmp_path):
     text = edit(VALID, "n_modes = 2", 'n_modes = 2\nh_max = 2e-4\nwhy = "the ripple study"')
     case = load_case(write(tmp_path, text, "good"))
-    assert case.reference == ReferenceSettings(h_max=2e-4, why="the ripple study") and case.n_modes == (2,) * 6
-    assert case.variant(True).reference.given() == {"h_max": 2e-4}
+    assert case.engine_settings["reference"] == ReferenceSettings(h_max=2e-4, why="the ripple study") and case.engine_settings["reference"].n_modes == (2,) * 6
+    assert case.variant(True).engine_settings["reference"].given() == {"integrator": "dopri5", "rtol": 1e-9, "h_max": 2e-4}
 
 
 def test_reference_table_names_the_quiet_segments_integrator(tmp_path):
     text = edit(VALID, "n_modes = 2", 'n_modes = 2\nquiet_integrator = "imex"\nwhy = "the coast study"')
     case = load_case(write(tmp_path, text, "good"))
-    assert case.reference.quiet_integrator == "imex" and case.solver.integrator == "dopri5"
+    assert case.engine_settings["reference"].quiet_integrator == "imex" and case.engine_settings["reference"].integrator == "dopri5"
 
 
 GROWTH = '[compare.motor_torques]\ntolerance = 0.02\nwhy = "w."\nmetric = "growth"\n'

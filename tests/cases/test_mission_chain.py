@@ -11,7 +11,7 @@ import pytest
 
 from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.chain import end_state_path, load_end_state, run_case, start_of
-from rsmcheck.orchestration.engines import make_engine
+from rsmcheck.core.plugins import make_engine
 from rsmcheck.core.errors import InputError
 from rsmcheck.driver.initial import build_initial
 from rsmcheck.core.store import read_run

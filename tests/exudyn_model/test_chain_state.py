@@ -15,7 +15,7 @@ import pytest
 from rsmcheck.orchestration import chain
 from rsmcheck.core.cases import load_case
 from rsmcheck.core.engine import Inputs
-from rsmcheck.orchestration.engines import make_engine
+from rsmcheck.core.plugins import make_engine
 from rsmcheck.driver.runner import run
 
 RELATIVE = ("target_pose_B", "ee1_pos_B", "ee2_pos_B", "capture_gap_B", "com_pos_B", "joint_angles",

@@ -331,14 +331,14 @@ def test_intervals_other_than_the_control_period(free_drift, stepping):
 
 def test_case_exudyn_table_sets_the_step_and_options_override_it():
     case = load_case("motor_step")
-    assert case.exudyn.substeps == 128
+    assert case.engine_settings["exudyn"].substeps == 128
     assert ExudynEngine(case, rigid=True).substeps == 128
     assert ExudynEngine(case, rigid=True, substeps=4).substeps == 4
     assert ExudynEngine(load_case("free_drift"), rigid=True).substeps == 2  # no table: the default
     assert ExudynEngine(case).n_elements == 16
     # motor_step's stiffer, shorter elements (EA = 1e6·EI, 16 per link) run at 3e-3 N, not
     # 1000·ε·EA = 1e-2 N
-    assert case.exudyn.newton_atol == 3e-3
+    assert case.engine_settings["exudyn"].newton_atol == 3e-3
     assert ExudynEngine(case).newton_atol == 3e-3
     assert ExudynEngine(case, newton_atol=5e-3).newton_atol == 5e-3
     assert ExudynEngine(case, rigid=True).newton_atol == 1e-10  # rigid links: no axial round-off floor

@@ -179,7 +179,7 @@ def test_the_quiet_segments_go_to_the_quiet_integrator():
     base = load_case("p4_hohmann").variant(True)
     burn, coast = base.segments[0], base.segments[1]
     case = replace(base, segments=(replace(burn, duration=0.5), replace(coast, duration=7.0)), duration=7.5)
-    assert case.reference.quiet_integrator == "imex"
+    assert case.engine_settings["reference"].quiet_integrator == "imex"
     runs, late_steps, x_at_shutdown = {}, {}, {}
     for quiet in ("imex", "dopri5"):
         engine = ReferenceEngine(case, quiet_integrator=quiet)

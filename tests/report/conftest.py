@@ -46,7 +46,7 @@ def rendered(run_pool, tmp_path_factory) -> Rendered:
         store_runs(run_dir(folder), case, True, runs[case.name], digest)
     runs["mission"] = {"reference": run_pool.get("mission", "reference").run}
     store_runs(run_dir(folder), cases[-1], True, runs["mission"], digest)
-    write_json(folder / "pinocchio.json", {"checks": run_checks(n_states=2, open_arms=(1, 2))})
+    write_json(folder / "pinocchio.json", {"checks": run_checks(n_states=2, open_arms=(1, 2)), "checker": "pinocchio"})
     res = Collected(folder, cases, True, ["reference", "exudyn"])
     doc = verdict(res, digest)
     write_json(folder / "verdict.json", doc)

@@ -27,7 +27,8 @@ def test_cross_check_rows_are_those_of_rsmcheck_check(rendered):
     expected = []
     for name in ("free_drift", "p1_rigid_gains"):
         runs = rendered.runs[name]
-        expected += [r.as_dict() for r in check_runs(load_case(name).variant(True), runs["reference"], runs["exudyn"])]
+        expected += [{**r.as_dict(), "engines": ["reference", "exudyn"]}
+                     for r in check_runs(load_case(name).variant(True), runs["reference"], runs["exudyn"])]
     assert rendered.verdict["checks"] == json.loads(json.dumps(expected))
     table = rendered.html[rendered.html.index('id="verdict-table"'):]
     table = table[:table.index("</table>")]

@@ -96,13 +96,20 @@ def test_run_unknown_case_name(tmp_path, capsys):
     assert files_under(out) == []
 
 
-@pytest.mark.parametrize("argv", [["run"], ["frobnicate"], ["run", "free_drift", "--engine", "warp"], []],
-                         ids=["run_without_case", "unknown_command", "unknown_engine", "no_command"])
+@pytest.mark.parametrize("argv", [["run"], ["frobnicate"], []],
+                         ids=["run_without_case", "unknown_command", "no_command"])
 def test_usage_errors_exit_2_with_one_line(capsys, argv):
     with pytest.raises(SystemExit) as info:
         main(argv)
     assert info.value.code == 2
     assert_one_clean_line(capsys.readouterr().err, "rsmcheck")
+
+
+def test_an_engine_no_plug_in_registers_exits_2_naming_the_registered_ones(capsys, tmp_path):
+    assert main(["run", "free_drift", "--engine", "warp", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert_one_clean_line(err, "warp")
+    assert "registered: reference, exudyn" in err
 
 
 def test_bad_case_in_a_real_process(tmp_path):
@@ -343,9 +350,9 @@ def _fake_gate(monkeypatch):
 def _fake_modes(monkeypatch):
     import rsmcheck.orchestration.modes as modes
 
-    monkeypatch.setattr(modes, "link_rows", lambda n_elements=None: [
+    monkeypatch.setattr(modes, "link_rows", lambda options=None, engines=None: [
         {"basis": "PP", "mode": 1, "analytic_hz": 30.16, "reference_hz": 30.16, "exudyn_hz": NAN}])
-    monkeypatch.setattr(modes, "arm_rows", lambda n_modes=None, n_elements=None: [
+    monkeypatch.setattr(modes, "arm_rows", lambda options=None, engines=None: [
         {"configuration": "x", "mode": 1, "reference_hz": 1.0, "exudyn_hz": INF, "rel_difference": INF}])
 
 

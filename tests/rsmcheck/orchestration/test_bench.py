@@ -40,8 +40,8 @@ def test_bench_times_the_variant_that_check_runs():
     timed, warm = bench_cases("motor_step", short=True)
     assert timed is warm and timed.duration == full.short_duration
     assert timed.segments == full.short.segments != full.segments
-    assert full.exudyn.jacobian_per_step and not timed.exudyn.jacobian_per_step
-    assert bench_cases("motor_step", short=False)[0].exudyn == full.exudyn
+    assert full.engine_settings["exudyn"].jacobian_per_step and not timed.engine_settings["exudyn"].jacobian_per_step
+    assert bench_cases("motor_step", short=False)[0].engine_settings["exudyn"] == full.engine_settings["exudyn"]
     mission, first = bench_cases("mission", short=True)
     assert first.name == mission.phases[0] and first.duration == load_case(first.name).short_duration
 

@@ -111,7 +111,7 @@ def test_growth_check_reports_both_rates():
     (row,) = check_runs(case, ref, other)
     assert row.error == pytest.approx(0.3, rel=1e-6) and not row.passed
     d = row.as_dict()
-    assert d["growth_rates"]["reference"] == pytest.approx(0.5) and d["growth_rates"]["other"] == pytest.approx(0.2)
+    assert d["growth_rates"]["reference"] == pytest.approx(0.5) and d["growth_rates"]["exudyn"] == pytest.approx(0.2)
     json.dumps(d, allow_nan=False)
 
 
@@ -314,9 +314,9 @@ def test_check_json_without_compare_table(capsys):
 
 @pytest.mark.parametrize("argv, field", [
     (["check", "no_such_case"], "case"),
-    (["check", "flex_arm_step", "--exudyn", "substeps"], "substeps"),
-    (["check", "flex_arm_step", "--exudyn", "warp=9"], "warp"),
-    (["check", "flex_arm_step", "--reference", "n_elements=4"], "n_elements"),
+    (["check", "flex_arm_step", "--option", "exudyn:substeps"], "substeps"),
+    (["check", "flex_arm_step", "--option", "exudyn:warp=9"], "warp"),
+    (["check", "flex_arm_step", "--option", "reference:n_elements=4"], "n_elements"),
 ])
 def test_check_bad_input_exits_2(argv, field, capsys):
     assert main(argv) == 2

@@ -10,7 +10,10 @@ from pathlib import Path
 import pytest
 
 import rsmcheck.orchestration.faults as faults
-from rsmcheck.orchestration.faults import FAULTS, ROOT, _failed_tests, apply, revert
+from rsmcheck.orchestration.faults import ROOT, _failed_tests, apply, catalogue, revert
+
+ITEMS = catalogue()
+FAULTS = [i.fault for i in ITEMS]
 
 
 def test_every_fault_applies_exactly_once():
@@ -21,7 +24,7 @@ def test_every_fault_applies_exactly_once():
 
 
 def test_the_faults_cover_every_layer_and_one_control():
-    layers = [f.layer for f in FAULTS]
+    layers = [i.layer for i in ITEMS]
     assert sum(layer != "none" for layer in layers) >= 15
     assert {"reference", "exudyn", "shared"} <= set(layers)
     assert layers.count("none") == 1

@@ -97,7 +97,7 @@ def test_the_step_perturbation_changes_only_rtol_and_bounds_the_tolerance(tiny, 
     change is a lower bound of every gate tolerance."""
     case, _ = tiny
     stepped_case = step_perturbed_case(case)
-    assert stepped_case.solver.rtol == pytest.approx(case.solver.rtol * (1 + STEP_PERTURBATION), rel=1e-15)
+    assert stepped_case.engine_settings["reference"].rtol == pytest.approx(case.engine_settings["reference"].rtol * (1 + STEP_PERTURBATION), rel=1e-15)
     assert stepped_case.params == case.params and stepped_case.initial == case.initial
     nominal, perturbed = tiny_runs
     engine = ReferenceEngine(stepped_case)
@@ -124,8 +124,8 @@ def test_the_step_perturbation_moves_exudyn_s_newton_stops_and_bounds_the_tolera
     case = load_case("closed_squeeze").variant(True)
     stepped_case = step_perturbed_case(case)
     assert stepped_case.params == case.params and stepped_case.initial == case.initial
-    assert case.exudyn.newton_atol_scale is None  # a case file cannot set it
-    assert dataclasses.replace(stepped_case.exudyn, newton_atol_scale=None) == case.exudyn
+    assert case.engine_settings["exudyn"].newton_atol_scale is None  # a case file cannot set it
+    assert dataclasses.replace(stepped_case.engine_settings["exudyn"], newton_atol_scale=None) == case.engine_settings["exudyn"]
     nominal_engine, stepped_engine = ExudynEngine(case), ExudynEngine(stepped_case)
     assert stepped_engine.newton_atol == pytest.approx(nominal_engine.newton_atol * (1 + STEP_PERTURBATION),
                                                        rel=1e-15)

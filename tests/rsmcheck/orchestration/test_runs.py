@@ -17,7 +17,9 @@ import rsmcheck.orchestration.runs as runs_mod
 from rsmcheck.core.cases import load_case
 from rsmcheck.cli import main
 from rsmcheck.core.observables import allocate
-from rsmcheck.orchestration.engines import ENGINES
+from rsmcheck.core.plugins import default_engines
+
+ENGINES = default_engines()
 from rsmcheck.orchestration.runs import (Job, SequenceRun, get_runs, read_stored, run_jobs, run_path, source_digest,
                                          store_runs)
 from rsmcheck.core.store import EngineRun, dumps_json

@@ -1,0 +1,76 @@
+"""The Exudyn model as an rsmcheck engine plug-in (rsmcheck.core.plugins): registered in
+pyproject.toml under the entry-point group ``rsmcheck.engines`` as ``exudyn``; its library
+comes with the extra ``rsmcheck[exudyn]``.
+
+This module is imported to read case files: it imports the settings schema only, not Exudyn.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from exudyn_model import settings
+from exudyn_model.faults import FAULTS
+from rsmcheck.core.plugins import LineStyle, WorkCounter
+
+
+class ExudynPlugin:
+    name = "exudyn"
+    label = "Exudyn"
+    style = LineStyle("#ff7f0e", "dash")
+    simulates = True
+    requires = ("exudyn", "numba")
+    extra = "exudyn"
+    #: the distributions that bring `requires` (a run's provenance records their versions)
+    distributions = ("exudyn",)
+    tables = ("exudyn",)
+    solver_keys = ()
+    work_counters = (WorkCounter("steps", ("steps",)), WorkCounter("Newton iterations", ("newton_iterations",)),
+                     WorkCounter("Jacobians", ("jacobians",)))
+    rigid_options = None
+    analytic_tests = ()
+    resolution_option = "n_elements"
+    #: the engine's constructor options (`rsmcheck check --option exudyn:KEY=VALUE`)
+    engine_options = ("rigid", "n_elements", "substeps", "quiet_substeps", "spectral_radius", "newton_rtol",
+                      "newton_atol", "jacobian_per_step", "jacobian_period", "field", "restart_on_input_change",
+                      "stepping", "constraints", "axial_damping", "restart_threshold")
+
+    def parse_settings(self, tables, solver, where, key):
+        return settings.parse(tables, solver, where, key)
+
+    def make(self, case, start=None, **options):
+        from exudyn_model.engine import ExudynEngine
+
+        return ExudynEngine(case, start=start, **options)
+
+    def step_perturbed(self, s, factor):
+        """The absolute Newton tolerance scaled, whichever it is: other steps where the
+        iteration stops."""
+        return replace(s, newton_atol_scale=(s.newton_atol_scale or 1.0) * factor)
+
+    def faults(self):
+        return FAULTS
+
+    def linear_plant(self, case, outputs, n_inputs=7, eps=1e-7, **options):
+        from exudyn_model.modes import linear_plant
+
+        return linear_plant(case, outputs, n_inputs, eps, **options)
+
+    def coupled_frequencies(self, case, n=6, f_min=1.0, **options):
+        from exudyn_model.modes import coupled_frequencies
+
+        return coupled_frequencies(case, n, f_min, **options)
+
+    def link_frequencies(self, params, basis, n=2, **options):
+        """The first `n` bending frequencies [Hz] of one meshed link in `basis`."""
+        from exudyn_model import links
+
+        return links.link_frequencies(params, basis, options.get("n_elements") or links.N_ELEMENTS_DEFAULT, n)
+
+    def rhs_timing(self, case, n=2000, **options):
+        from exudyn_model.stepping import rhs_timing
+
+        return rhs_timing(case, n, **options)
+
+
+PLUGIN = ExudynPlugin()

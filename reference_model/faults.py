@@ -1,0 +1,48 @@
+"""The reference model's fault catalogue: plausible bugs in this engine's own code, for the fault-injection matrix
+(`make faults`, rsmcheck.orchestration.faults).  Each is one exact text that occurs once in
+its file (paths relative to the tree's root), replaced by a wrong one."""
+
+from __future__ import annotations
+
+from rsmcheck.core.plugins import Fault
+
+FAULTS: tuple[Fault, ...] = (
+    Fault("ref_coriolis_factor", "reference_model/core.py",
+          "V[0] = w * w * (c * s1x - s * s1y) + 2.0 * w * c * pbd",
+          "V[0] = w * w * (c * s1x - s * s1y) + 1.0 * w * c * pbd",
+          "Coriolis term 2θ̇ A S e_y (φ̄·ȧ) of a link's x force with factor 1 instead of 2"),
+    Fault("ref_rotary_inertia", "reference_model/core.py",
+          "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_I0]",
+          "the links' rotary inertia beyond the slender beam (J_extra) left out"),
+    Fault("ref_kelvin_voigt_half", "reference_model/core.py",
+          "kf += m.k_ff[i, b, a, e] * (q[o + e] + sc[S_ETA] * qd[o + e])",
+          "kf += m.k_ff[i, b, a, e] * (q[o + e] + 0.5 * sc[S_ETA] * qd[o + e])",
+          "Kelvin–Voigt coefficient η = ζ/ω₁ instead of 2ζ/ω₁ (half the structural damping)"),
+    Fault("ref_tidal_exponent", "reference_model/field.py",
+          "f = -math.expm1(-1.5 * math.log1p(qv))", "f = -math.expm1(-1.45 * math.log1p(qv))",
+          "gravity-gradient law: (1+q)^(−1.45) instead of (1+q)^(−3/2) (tidal coefficient 2.9 instead of 3)"),
+    Fault("ref_mass_flow_g0", "reference_model/core.py",
+          "dx[2 * ns + 4] = u[U_THRUST] / m.sc[S_ISPG0]",
+          "dx[2 * ns + 4] = u[U_THRUST] / (m.sc[S_ISPG0] * 9.81 / 9.80665)",
+          "mass flow T/(Isp g0) with g0 = 9.81 instead of 9.80665 m/s²"),
+    Fault("ref_thrust_direction", "reference_model/core.py",
+          "f[0] += mB * aunif[0] + thrust * cb", "f[0] += mB * aunif[0] + thrust * cb * 0.99",
+          "thrust x component 1 % short (a misaligned nozzle in one engine only)"),
+    Fault("ref_baumgarte_damping", "reference_model/core.py",
+          "- 2.0 * sc[S_ALPHA] * phid[row + d]", "- sc[S_ALPHA] * phid[row + d]",
+          "Baumgarte eq. (12): φ̈ + α φ̇ + β² φ instead of φ̈ + 2α φ̇ + β² φ"),
+    Fault("ref_modal_stiffness", "reference_model/beam_modes.py",
+          "k_ff = ei * (phi2.T * w) @ phi2", "k_ff = 1.02 * ei * (phi2.T * w) @ phi2",
+          "modal stiffness 2 % high (a wrong EI in the reference's modal integrals)"),
+    Fault("ref_modal_mass", "reference_model/beam_modes.py",
+          "m_ff = rho_a * (phi.T * w) @ phi", "m_ff = 1.02 * rho_a * (phi.T * w) @ phi",
+          "modal mass 2 % high"),
+    Fault("ref_basis_switch_drops_momentum", "reference_model/switching.py",
+          "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, report.dropped_momentum)",
+          "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, None)",
+          "release: the generalised momentum the PF basis cannot carry is dropped, not given back"),
+    # ---- control: a change that changes no arithmetic (a name starting with noop_) -------
+    Fault("noop_commuted_sum", "reference_model/core.py",
+          "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_JEX] + sc[S_I0]",
+          "control: a commuted sum (exact in IEEE arithmetic); must be caught by nothing"),
+)

@@ -1,0 +1,85 @@
+"""The reference model as an rsmcheck engine plug-in (rsmcheck.core.plugins): registered in
+pyproject.toml under the entry-point group ``rsmcheck.engines`` as ``reference``.
+
+This module is imported to read case files: it imports the settings schema only; the model
+(numba-compiled) loads when an engine, a linearisation or a timing is asked for.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from reference_model import settings
+from reference_model.faults import FAULTS
+from rsmcheck.core.plugins import LineStyle, WorkCounter
+
+
+class ReferencePlugin:
+    name = "reference"
+    label = "reference"
+    style = LineStyle("#1f77b4", "solid")
+    simulates = True
+    requires = ("numba",)
+    extra = None
+    tables = ("reference",)
+    solver_keys = ("rtol", "integrator")
+    work_counters = (WorkCounter("attempted steps", ("steps", "rejected_steps")),
+                     WorkCounter("Jacobians", ("jacobians",)))
+    #: constructor options of the rigid model (no modes, no static shapes): the bench's rigid
+    #: right-hand side, the rigid studies
+    rigid_options = {"n_modes": 0, "static_modes": False}
+    #: the model's tests against analytic references (conservation of energy and momentum,
+    #: the Baumgarte decay of eq. (12), Table 2's frequencies): the fault matrix runs them
+    analytic_tests = ("tests/reference_model/test_conservation.py", "tests/reference_model/test_link_modes.py")
+    #: the option that sets the resolution, for `rsmcheck modes --resolution`
+    resolution_option = "n_modes"
+    #: the engine's constructor options (`rsmcheck check --option reference:KEY=VALUE`)
+    engine_options = ("n_modes", "rtol", "integrator", "h_max", "static_modes", "quiet_integrator")
+
+    def parse_settings(self, tables, solver, where, key):
+        return settings.parse(tables, solver, where, key)
+
+    def make(self, case, start=None, **options):
+        from reference_model.engine import ReferenceEngine
+
+        return ReferenceEngine(case, start=start, **options)
+
+    def step_perturbed(self, s, factor):
+        """The relative tolerance scaled: another sequence of accepted and rejected steps."""
+        return replace(s, rtol=s.rtol * factor)
+
+    def faults(self):
+        return FAULTS
+
+    def linear_plant(self, case, outputs, n_inputs=7, eps=1e-7, **options):
+        from reference_model.modes import linear_plant
+
+        return linear_plant(case, outputs, n_inputs, eps, **options)
+
+    def coupled_frequencies(self, case, n=6, f_min=1.0, **options):
+        from reference_model.modes import coupled_frequencies
+
+        return coupled_frequencies(case, n, f_min, **options)
+
+    def link_frequencies(self, params, basis, n=2, **options):
+        """The first `n` bending frequencies [Hz] of one link in `basis` ("PP", "PF") from
+        the model's own modal matrices."""
+        import math
+
+        import numpy as np
+        from scipy.linalg import eigh
+
+        from reference_model.beam_modes import PF, PP, modal_basis
+
+        link = params.link
+        b = modal_basis(PP if basis == "PP" else PF, max(n, 2), link.length, link.rho_a, link.ei)
+        lam = eigh(b.k_ff, b.m_ff, eigvals_only=True)
+        return np.sqrt(np.sort(lam)[:n]) / (2 * math.pi)
+
+    def rhs_timing(self, case, n=2000, **options):
+        from reference_model.stepping import rhs_timing
+
+        return rhs_timing(case, n, **options)
+
+
+PLUGIN = ReferencePlugin()

@@ -1,0 +1,317 @@
+"""Engine plug-ins: what an engine package declares, and the registry that finds them.
+
+An engine is a Python distribution that registers one object under the entry-point group
+``rsmcheck.engines`` (pyproject.toml)::
+
+    [project.entry-points."rsmcheck.engines"]
+    myengine = "my_package.plugin:PLUGIN"
+
+The object satisfies `EnginePlugin`.  Everything engine-specific lives there: its name and
+label, the tables of a case file it owns and their schema, how to build it, the counters
+that measure its work, the perturbation the gate uses to measure its reproducibility, its
+linearisation, frequencies and right-hand-side timing (where it has them), its fault
+catalogue for `make faults`, and its colour and line style in the report.  The shared code
+(the driver, the orchestration, the report, the command line) reaches engines only through
+`plugins()` and `plugin(name)` and names none of them; the engines a cross-check compares
+when none are named are one setting (`default_engines`).
+
+A plug-in module is imported to read the case files, so it imports only the foundation
+(rsmcheck.core) and its own light modules; its heavy libraries (Exudyn, numba, Pinocchio)
+load when `make` (or another capability) is called.  `requires` names those libraries and
+`extra` the pip extra that brings them: asking for an engine whose library is missing is
+one line naming that extra (`require`).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import tomllib
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from importlib import metadata, resources
+from typing import Any, Callable, Mapping, Protocol, runtime_checkable
+
+from rsmcheck.core.errors import InputError
+
+# Annotations name `Case` (rsmcheck.core.cases, which imports this module), `Engine`
+# (rsmcheck.core.engine) and `StartState` (rsmcheck.driver.initial, a layer above): they
+# stay strings, never imported here.
+
+#: the entry-point group engines register under
+GROUP = "rsmcheck.engines"
+#: the environment variable that overrides the default engines of a cross-check
+ENGINES_ENV = "RSMCHECK_ENGINES"
+
+
+@dataclass(frozen=True)
+class LineStyle:
+    """How the report draws an engine: a CSS colour and a Plotly dash ("solid", "dash", …)."""
+
+    colour: str
+    dash: str = "solid"
+
+
+@dataclass(frozen=True)
+class WorkCounter:
+    """A measure of a run's work: `label` and the solver counters (`EngineRun.solver` keys)
+    summed into it, e.g. ("attempted steps", ("steps", "rejected_steps"))."""
+
+    label: str
+    keys: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One plausible bug for the fault-injection matrix: `old` → `new` (an exact text that
+    occurs once) in `path`, relative to the root of the tree the faults are applied to."""
+
+    name: str
+    path: str
+    old: str
+    new: str
+    what: str
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """A finer resolution of an engine for studies: constructor options and what they mean."""
+
+    options: Mapping[str, Any]
+    what: str
+
+
+class EngineSettings(Protocol):
+    """A plug-in's settings of one case (a frozen dataclass of its own)."""
+
+    def given(self) -> dict[str, Any]:
+        """The settings a run's provenance records (what the case file gave, and what the
+        engine reads from shared tables)."""
+        ...
+
+
+@runtime_checkable
+class EnginePlugin(Protocol):
+    """What an engine package declares (module doc).  Optional capabilities are None."""
+
+    #: the engine's name in case files, run files, goldens and on the command line
+    name: str
+    #: how tables and plots name it ("Exudyn")
+    label: str
+    #: the report's colour and dash for its curves
+    style: LineStyle
+    #: True for an engine that simulates a case (the `Engine` protocol); False for a plug-in
+    #: that only checks (its `rigid_checks`)
+    simulates: bool
+    #: the importable modules it needs beyond rsmcheck's own dependencies, and the pip extra
+    #: that installs them (None: nothing beyond the base install)
+    requires: tuple[str, ...]
+    extra: str | None
+    #: the case-file tables it owns (each may also stand in [short]) and the keys of the
+    #: shared [solver] table it reads
+    tables: tuple[str, ...]
+    solver_keys: tuple[str, ...]
+    #: the measures of a run's work, for the gate and the bench
+    work_counters: tuple[WorkCounter, ...]
+
+    def parse_settings(self, tables: Mapping[str, Mapping[str, Any]], solver: Mapping[str, Any],
+                       where: str, key: Callable[[str], str]) -> EngineSettings:
+        """Its settings of a case from its own tables (absent tables empty) and its keys of
+        [solver]; an error is `InputError(where, key(table) + ".field", reason)`."""
+        ...
+
+    def make(self, case: Case, start: StartState | None = None, **options) -> Engine:
+        """The engine for `case` (constructor `options`), started from `start` or the case's
+        [initial]."""
+        ...
+
+    def step_perturbed(self, settings: EngineSettings, factor: float) -> EngineSettings:
+        """`settings` with the tolerance behind the engine's discrete decisions (steps
+        accepted or rejected, Newton stops) scaled by `factor`, at the same accuracy: the
+        gate's measure of how far round-off can move a run."""
+        ...
+
+    def faults(self) -> tuple[Fault, ...]:
+        """Plausible bugs in its own code, for `make faults`."""
+        ...
+
+
+# ---------------------------------------------------------------------------------------
+# the registry
+# ---------------------------------------------------------------------------------------
+@lru_cache(maxsize=1)
+def plugins() -> dict[str, EnginePlugin]:
+    """Every registered plug-in by name: the engines that simulate first, the default
+    engines of a cross-check (defaults.toml) in their order, then the others by name (the
+    first distribution on sys.path wins where two register one name)."""
+    found: dict[str, EnginePlugin] = {}
+    for ep in metadata.entry_points(group=GROUP):
+        if ep.name in found:
+            continue
+        try:
+            obj = ep.load()
+        except ImportError as exc:
+            raise InputError(f"entry point {GROUP}", ep.name, f"its module does not import ({exc})") from None
+        missing = [a for a in ("name", "label", "style", "simulates", "requires", "extra", "tables",
+                               "solver_keys", "work_counters", "parse_settings", "make") if not hasattr(obj, a)]
+        if missing:
+            raise InputError(f"entry point {GROUP}", ep.name, f"{ep.value} lacks {', '.join(missing)}")
+        if obj.name != ep.name:
+            raise InputError(f"entry point {GROUP}", ep.name, f"{ep.value} calls itself {obj.name!r}")
+        found[ep.name] = obj
+    first = list(_defaults()["check_engines"])
+    return dict(sorted(found.items(), key=lambda kv: (not kv[1].simulates,
+                                                      first.index(kv[0]) if kv[0] in first else len(first), kv[0])))
+
+
+def plugin(name: str, option: str = "--engine") -> EnginePlugin:
+    """The plug-in `name`; an unknown name is an `InputError` listing the known ones."""
+    known = plugins()
+    if name not in known:
+        raise InputError(option, name, f"no such engine (registered: {', '.join(known) or 'none'})")
+    return known[name]
+
+
+def simulators() -> tuple[str, ...]:
+    """The names of the registered engines that simulate, in registry order."""
+    return tuple(n for n, p in plugins().items() if p.simulates)
+
+
+def with_capability(capability: str) -> tuple[str, ...]:
+    """The registered plug-ins that offer `capability` (an attribute that is not None)."""
+    return tuple(n for n, p in plugins().items() if getattr(p, capability, None) is not None)
+
+
+def available(name: str) -> bool:
+    """Whether every library plug-in `name` requires can be imported here."""
+    return all(importlib.util.find_spec(m) is not None for m in plugin(name).requires)
+
+
+def require(name: str, option: str = "--engine") -> EnginePlugin:
+    """The plug-in `name`, its libraries checked: a missing one is one line naming the pip
+    extra that installs it."""
+    p = plugin(name, option)
+    missing = [m for m in p.requires if importlib.util.find_spec(m) is None]
+    if missing:
+        how = f"pip install 'rsmcheck[{p.extra}]'" if p.extra else f"install {', '.join(missing)}"
+        raise InputError(option, name, f"{p.label} needs {', '.join(missing)}, not installed here: {how}")
+    return p
+
+
+def make_engine(name: str, case: Case, start: StartState | None = None, **options) -> Engine:
+    """The engine `name` for `case`, started from `start` (its rigid part, then the engine's
+    own exact state on top when it can take it: `import_state`, same model size)."""
+    p = require(name)
+    if not p.simulates:
+        raise InputError("--engine", name, f"{p.label} checks but does not simulate")
+    engine = p.make(case, start=start, **options)
+    if start is not None and start.exact is not None:
+        engine.import_state(dict(start.exact))
+    return engine
+
+
+def engine_names(choice: str | None) -> list[str]:
+    """The engines a command's `--engine`/`--engines` names: "all" (every registered engine
+    that simulates), a comma-separated list, or None (the default engines)."""
+    if choice is None:
+        return list(default_engines())
+    names = list(simulators()) if choice == "all" else [n.strip() for n in choice.split(",") if n.strip()]
+    for n in names:
+        if plugin(n).simulates is False:
+            raise InputError("--engine", n, f"{plugin(n).label} checks but does not simulate")
+    if len(set(names)) != len(names):
+        raise InputError("--engine", choice, "names an engine twice")
+    return names
+
+
+def plugin_distributions() -> list[str]:
+    """The installed distributions that provide the libraries the plug-ins require (e.g.
+    "exudyn", "pin" for the module pinocchio): what a run's provenance records."""
+    by_module = metadata.packages_distributions()
+    out: list[str] = []
+    for p in plugins().values():
+        out += [d for d in getattr(p, "distributions", ()) if d not in out]
+        for m in p.requires:
+            out += [d for d in by_module.get(m, []) if d not in out]
+    return out
+
+
+def default_engines() -> tuple[str, ...]:
+    """The engines a cross-check compares when none are named: the first is the model under
+    test, the others the independent engines it is checked against.  Set in the package's
+    defaults.toml (`check_engines`), overridden by the environment variable RSMCHECK_ENGINES
+    (comma-separated)."""
+    env = os.environ.get(ENGINES_ENV, "").strip()
+    if env:
+        names = tuple(n.strip() for n in env.split(",") if n.strip())
+        where, key = ENGINES_ENV, "value"
+    else:
+        names = tuple(_defaults()["check_engines"])
+        where, key = "rsmcheck/core/defaults.toml", "check_engines"
+    if len(names) < 2:
+        raise InputError(where, key, f"a cross-check needs two engines, got {', '.join(names) or 'none'}")
+    for n in names:
+        if n not in plugins():
+            raise InputError(where, key, f"no such engine {n!r} (registered: {', '.join(plugins())})")
+    return names
+
+
+@lru_cache(maxsize=1)
+def _defaults() -> dict[str, Any]:
+    return tomllib.loads(resources.files("rsmcheck.core").joinpath("defaults.toml").read_text(encoding="utf-8"))
+
+
+# ---------------------------------------------------------------------------------------
+# a case's engine settings
+# ---------------------------------------------------------------------------------------
+def owned_tables() -> dict[str, str]:
+    """Case-file table → the plug-in that owns it."""
+    out: dict[str, str] = {}
+    for name, p in plugins().items():
+        for t in p.tables:
+            if t in out:
+                raise InputError(f"entry point {GROUP}", name, f"table [{t}] is owned by {out[t]} too")
+            out[t] = name
+    return out
+
+
+def owned_solver_keys() -> dict[str, str]:
+    """Key of the shared [solver] table → the plug-in that reads it."""
+    return {k: name for name, p in plugins().items() for k in p.solver_keys}
+
+
+def parse_engine_settings(raw: Mapping[str, Any], solver: Mapping[str, Any], where: str,
+                          key: Callable[[str], str]) -> dict[str, EngineSettings]:
+    """Every registered plug-in's settings of one case variant: its own tables of `raw` and
+    its keys of the [solver] table `solver`."""
+    out = {}
+    for name, p in plugins().items():
+        if not p.simulates:
+            continue
+        tables = {t: raw.get(t, {}) for t in p.tables}
+        out[name] = p.parse_settings(tables, {k: solver[k] for k in p.solver_keys if k in solver}, where, key)
+    return out
+
+
+def step_perturbed_settings(settings: Mapping[str, EngineSettings], factor: float) -> dict[str, EngineSettings]:
+    """Each engine's settings with its decision tolerance scaled by `factor` (the gate)."""
+    return {name: plugin(name).step_perturbed(s, factor) for name, s in settings.items()}
+
+
+def given_settings(settings: Mapping[str, EngineSettings]) -> dict[str, dict[str, Any]]:
+    """Each engine's settings as a run's provenance records them."""
+    return {name: s.given() for name, s in settings.items()}
+
+
+def settings_of(case: Case, name: str) -> EngineSettings:
+    """Plug-in `name`'s settings of `case` (the plug-in's defaults when the case was parsed
+    before it was registered)."""
+    s = case.engine_settings.get(name)
+    if s is None:
+        s = plugin(name).parse_settings({t: {} for t in plugin(name).tables}, {}, case.path, lambda k: k)
+    return s
+
+
+def replace_settings(case: Case, name: str, **changes) -> Case:
+    """`case` with plug-in `name`'s settings changed (`dataclasses.replace` on them)."""
+    return replace(case, engine_settings={**case.engine_settings, name: replace(settings_of(case, name), **changes)})
