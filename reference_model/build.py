@@ -1,4 +1,5 @@
-"""Building the reference model: parameters → the arrays of `core`, and named access.
+"""Building the reference model: parameters → the arrays of the compiled kernels
+(model_arrays.py), and named access.
 
 `ReferenceModel(params, n_modes)` fixes the number of modes per link (an int for all six
 links, or a sequence of six).  The modal basis of each link (PP or PF) is part of the
@@ -16,8 +17,12 @@ from typing import Sequence
 
 import numpy as np
 
-from reference_model import core
+from reference_model import kinematics, measures, ode, solve, system
 from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
+from reference_model.model_arrays import (
+    ModelArrays, N_INPUTS, N_LINKS, N_SCALARS, S_ALPHA, S_BETA, S_BM, S_CM, S_ETA, S_I0, S_ISPG0, S_JB,
+    S_JEX, S_JT, S_KM, S_L, S_MB0, S_ML, S_MT, S_MTOT0, S_MU, S_ORBIT, S_RHO, S_WC, S_WK, S_WLIM,
+    Switches, U_TAU_B)
 from rsmcheck.core.geometry import rot
 from rsmcheck.driver.initial import InitialConfiguration
 from rsmcheck.core.params import Params
@@ -31,7 +36,7 @@ STATIC_MODES_DEFAULT = True
 
 @dataclass(frozen=True)
 class Layout:
-    """Index ranges of the ODE state x = [Y*, Ẏ*, r_O, v_O, m_used] (core module doc)."""
+    """Index ranges of the ODE state x = [Y*, Ẏ*, r_O, v_O, m_used] (model_arrays module doc)."""
 
     nq: int
     n_modes: tuple[int, ...]
@@ -127,9 +132,9 @@ class ReferenceModel:
     def __init__(self, params: Params, n_modes: int | Sequence[int] = 2, orbit: bool = False,
                  static_modes: bool = STATIC_MODES_DEFAULT):
         if isinstance(n_modes, (int, np.integer)):
-            n_modes = (int(n_modes),) * core.N_LINKS
+            n_modes = (int(n_modes),) * N_LINKS
         n_eigen = tuple(int(n) for n in n_modes)
-        if len(n_eigen) != core.N_LINKS or any(n < 0 or n > N_MAX_MODES for n in n_eigen):
+        if len(n_eigen) != N_LINKS or any(n < 0 or n > N_MAX_MODES for n in n_eigen):
             raise ValueError(f"n_modes must be 6 integers in 0..{N_MAX_MODES}, got {n_eigen}")
         self.params = params
         self.orbit = orbit
@@ -142,37 +147,37 @@ class ReferenceModel:
             {kind: modal_basis(kind, n, lk.length, lk.rho_a, lk.ei, n_static if n else 0) for kind in (PP, PF)}
             for n in n_eigen]
         shapes = tuple(b[PP].n for b in self.bases)
-        offsets = tuple(9 + sum(shapes[:i]) for i in range(core.N_LINKS))
+        offsets = tuple(9 + sum(shapes[:i]) for i in range(N_LINKS))
         self.layout = Layout(nq=9 + sum(shapes), n_modes=shapes, mode_offset=offsets)
         self.arrays = self._pack()
 
     # ---- packing -------------------------------------------------------------------
-    def _pack(self) -> core.ModelArrays:
+    def _pack(self) -> ModelArrays:
         p = self.params
         lk = p.link
-        sc = np.zeros(core.N_SCALARS)
-        sc[core.S_MB0] = p.base.mass
-        sc[core.S_JB] = p.base.inertia_z
-        sc[core.S_MT] = p.target.mass
-        sc[core.S_JT] = p.target.inertia_z
-        sc[core.S_ML] = lk.mass
-        sc[core.S_L] = lk.length
-        sc[core.S_RHO] = lk.rho_a
-        sc[core.S_I0] = lk.mass * lk.length**2 / 3.0
-        sc[core.S_JEX] = lk.inertia_extra
-        sc[core.S_ETA] = lk.kelvin_voigt_eta
-        sc[core.S_BM] = p.motor.inertia
-        sc[core.S_KM] = p.motor.stiffness
-        sc[core.S_CM] = p.motor.damping
-        sc[core.S_ALPHA] = p.grasp.baumgarte_alpha
-        sc[core.S_BETA] = p.grasp.baumgarte_beta
-        sc[core.S_WLIM] = p.wrist.limit
-        sc[core.S_WK] = p.wrist.stiffness
-        sc[core.S_WC] = p.wrist.damping
-        sc[core.S_MU] = p.orbit.mu
-        sc[core.S_ISPG0] = p.actuators.isp * p.actuators.g0
-        sc[core.S_ORBIT] = 1.0 if self.orbit else 0.0
-        sc[core.S_MTOT0] = p.base.mass + p.target.mass + 6 * lk.mass
+        sc = np.zeros(N_SCALARS)
+        sc[S_MB0] = p.base.mass
+        sc[S_JB] = p.base.inertia_z
+        sc[S_MT] = p.target.mass
+        sc[S_JT] = p.target.inertia_z
+        sc[S_ML] = lk.mass
+        sc[S_L] = lk.length
+        sc[S_RHO] = lk.rho_a
+        sc[S_I0] = lk.mass * lk.length**2 / 3.0
+        sc[S_JEX] = lk.inertia_extra
+        sc[S_ETA] = lk.kelvin_voigt_eta
+        sc[S_BM] = p.motor.inertia
+        sc[S_KM] = p.motor.stiffness
+        sc[S_CM] = p.motor.damping
+        sc[S_ALPHA] = p.grasp.baumgarte_alpha
+        sc[S_BETA] = p.grasp.baumgarte_beta
+        sc[S_WLIM] = p.wrist.limit
+        sc[S_WK] = p.wrist.stiffness
+        sc[S_WC] = p.wrist.damping
+        sc[S_MU] = p.orbit.mu
+        sc[S_ISPG0] = p.actuators.isp * p.actuators.g0
+        sc[S_ORBIT] = 1.0 if self.orbit else 0.0
+        sc[S_MTOT0] = p.base.mass + p.target.mass + 6 * lk.mass
         nmax = max(max(self.layout.n_modes), 1)
 
         def stack(attr: str) -> np.ndarray:
@@ -181,8 +186,8 @@ class ReferenceModel:
             lead = getattr(self.bases[0][PP], attr).shape[:-1]
             if attr in ("m_ff", "k_ff"):
                 lead = (nmax,)
-            out = np.zeros((core.N_LINKS, 2) + lead + (nmax,))
-            for i in range(core.N_LINKS):
+            out = np.zeros((N_LINKS, 2) + lead + (nmax,))
+            for i in range(N_LINKS):
                 for kind in (PP, PF):
                     v = getattr(self.bases[i][kind], attr)
                     out[(i, kind) + tuple(slice(0, d) for d in v.shape)] = v
@@ -194,8 +199,8 @@ class ReferenceModel:
         ref = self.bases[0][PP]
         nm = np.array(self.layout.n_modes, dtype=np.int64)
         mo = np.array(self.layout.mode_offset, dtype=np.int64)
-        order, first = core.elimination_order(self.layout.nq, nm, mo)
-        return core.ModelArrays(
+        order, first = solve.elimination_order(self.layout.nq, nm, mo)
+        return ModelArrays(
             nq=self.layout.nq, sc=sc,
             nm=nm, mo=mo,
             phi_bar=stack("phi_bar"), phi_x=stack("phi_x"), m_ff=stack("m_ff"), k_ff=stack("k_ff"),
@@ -207,20 +212,20 @@ class ReferenceModel:
     def scalars(self) -> np.ndarray:
         return self.arrays.sc
 
-    def switches(self, cfg: Configuration) -> core.Switches:
-        return core.Switches(cfg.basis, cfg.grasp_on, cfg.rho_G)
+    def switches(self, cfg: Configuration) -> Switches:
+        return Switches(cfg.basis, cfg.grasp_on, cfg.rho_G)
 
     def core_args(self, cfg: Configuration) -> tuple:
-        """Arguments of `core.rhs`/`core.assemble` after (x, u): model arrays, switches."""
+        """Arguments of `ode.rhs`/`system.assemble` after (x, u): model arrays, switches."""
         return self.arrays, self.switches(cfg)
 
-    def kinematics(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> core.Kinematics:
-        """`core.kinematics` for this model (frames, Jacobians, end effectors; `kin.th`, `kin.rE` …)."""
-        return core.kinematics(np.asarray(q, float), np.asarray(qd, float), self.arrays, cfg.basis)
+    def kinematics(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> kinematics.Kinematics:
+        """`kinematics.kinematics` for this model (frames, Jacobians, end effectors; `kin.th`, `kin.rE` …)."""
+        return kinematics.kinematics(np.asarray(q, float), np.asarray(qd, float), self.arrays, cfg.basis)
 
     def joint_section_angles(self, q: np.ndarray, qd: np.ndarray, cfg: Configuration) -> tuple:
         """ψ_J and ψ̇_J of the six joints (docs/physics.md §3.3)."""
-        return core.joint_section_angles(np.asarray(q, float), np.asarray(qd, float), self.arrays, cfg.basis)
+        return kinematics.joint_section_angles(np.asarray(q, float), np.asarray(qd, float), self.arrays, cfg.basis)
 
     # ---- state helpers -------------------------------------------------------------
     def zero_state(self) -> np.ndarray:
@@ -228,10 +233,10 @@ class ReferenceModel:
         return x
 
     def assemble(self, x: np.ndarray, u: np.ndarray, cfg: Configuration) -> tuple:
-        return core.assemble(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
+        return system.assemble(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
 
     def rhs(self, x: np.ndarray, u: np.ndarray, cfg: Configuration) -> np.ndarray:
-        return core.rhs(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
+        return ode.rhs(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
 
     # ---- quantities checked by Pinocchio (no orbit, no inputs) ----------------------
     def _state(self, q, qd, X_T=None, XT_d=None) -> np.ndarray:
@@ -258,7 +263,7 @@ class ReferenceModel:
         """Jᵀ M J of the RSM (no target, no rotors), eq. (A.6) [kg, kg·m, kg·m²]."""
         nq = self.layout.nq
         x = self._state(q, np.zeros(nq))
-        Mg = self.assemble(x, np.zeros(core.N_INPUTS), self._cfg_for((False, False)))[0]
+        Mg = self.assemble(x, np.zeros(N_INPUTS), self._cfg_for((False, False)))[0]
         return Mg[:nq, :nq].copy()
 
     def bias_forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
@@ -267,15 +272,15 @@ class ReferenceModel:
         nq = self.layout.nq
         lay = self.layout
         x = self._state(q, qd)
-        f = self.assemble(x, np.zeros(core.N_INPUTS), self._cfg_for((False, False)))[1][:nq]
+        f = self.assemble(x, np.zeros(N_INPUTS), self._cfg_for((False, False)))[1][:nq]
         # remove the elastic/Kelvin–Voigt part so the result is purely inertial
         ar = self.arrays
         cfg = self._cfg_for((False, False))
-        for i in range(core.N_LINKS):
+        for i in range(N_LINKS):
             sl = lay.modes(i)
             n = lay.n_modes[i]
             kf = ar.k_ff[i, cfg.basis[i], :n, :n]
-            f[sl] += kf @ (q[sl] + ar.sc[core.S_ETA] * qd[sl])
+            f[sl] += kf @ (q[sl] + ar.sc[S_ETA] * qd[sl])
         return -f
 
     def point_kinematics(self, q, qd, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -303,7 +308,7 @@ class ReferenceModel:
         jac[0, 0] = jac[1, 1] = p.base.mass
         jac[0, nq] = jac[1, nq + 1] = p.target.mass
         phi_bar = self.arrays.phi_bar
-        for i in range(core.N_LINKS):
+        for i in range(N_LINKS):
             n = self.layout.n_modes[i]
             sl = self.layout.modes(i)
             s1 = np.array([0.5 * p.link.mass * p.link.length, phi_bar[i, cfg.basis[i], :n] @ q[sl]])
@@ -315,9 +320,7 @@ class ReferenceModel:
 
     def momentum(self, q, qd, X_T, XT_d) -> np.ndarray:
         """Linear momentum (x, y) and angular momentum about the origin, RSM + target."""
-        from reference_model.observe import momentum_of_state
-
-        return momentum_of_state(self, self._state(q, qd, X_T, XT_d), self._cfg_for((False, False)))
+        return measures.momentum(self._state(q, qd, X_T, XT_d), *self.core_args(self._cfg_for((False, False))))
 
     def constrained_accelerations(self, q, qd, X_T, XT_d, grasp=(True, False), u_J=None,
                                   tau_B: float = 0.0):
@@ -330,17 +333,17 @@ class ReferenceModel:
         if u_J is not None:
             # u_J = −K_m(ψ_J − θ_m) with θ̇_m = ψ̇_J: set the motor angles to produce it
             x[lay.motors] = x[lay.motors] + np.asarray(u_J, float) / self.params.motor.stiffness
-        u = np.zeros(core.N_INPUTS)
-        u[core.U_TAU_B] = tau_B
+        u = np.zeros(N_INPUTS)
+        u[U_TAU_B] = tau_B
         cfg = self._cfg_for(grasp)
         sc = self.scalars.copy()
-        sc[core.S_ALPHA] = 0.0
-        sc[core.S_BETA] = 0.0
-        sc[core.S_WK] = 0.0
-        sc[core.S_WC] = 0.0
+        sc[S_ALPHA] = 0.0
+        sc[S_BETA] = 0.0
+        sc[S_WK] = 0.0
+        sc[S_WC] = 0.0
         arrays = self.arrays._replace(sc=sc)
-        Mg, f, G, _, _, Bs, *_ = core.assemble(x, u, arrays, self.switches(cfg))
-        ydd, Rc = core.solve_constrained(Mg, f, G, Bs, arrays)
+        Mg, f, G, _, _, Bs, *_ = system.assemble(x, u, arrays, self.switches(cfg))
+        ydd, Rc = solve.solve_constrained(Mg, f, G, Bs, arrays)
         R_cl = np.zeros(4)
         row = 0
         for k in range(2):

@@ -2,7 +2,7 @@
 control (numba), the default for every case (docs/physics.md §7).
 
 Seven stages, the 7th evaluated at the 5th-order solution (first same as last: six new
-right-hand sides `core.rhs` per step); the embedded 4th-order solution gives the error
+right-hand sides `ode.rhs` per step); the embedded 4th-order solution gives the error
 estimate per component.  The highest frequencies of the flexible model bound its step by
 stability: near 0.46 ms with the static correction shapes (their 0.8–1.1 kHz Ritz modes,
 the default), near 2.5 ms without them (the 160 Hz link modes); for quiet, stiff phases a
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from reference_model.core import rhs
+from reference_model.ode import rhs
 from reference_model.integration import ACCEPTED, NON_FINITE, UNDERFLOW, judge_step, step_toward
 
 # --- the Dormand–Prince 5(4) tableau: nodes c, stages a, 5th-order weights b, error weights e = b − b̂

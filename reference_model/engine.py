@@ -1,19 +1,32 @@
 """The reference model as an `rsmcheck.core.engine.Engine`: a facade over the modules that do
-the work, each named by its job as in `exudyn_model/` (so the two engines read side by side):
+the work, each named by its job as in `exudyn_model/` (so the two engines read side by side).
 
-    build.py       parameters → the model's arrays (`ReferenceModel`), the state layout, the
-                   switching configuration, the initial state
-    core.py        the compiled equations of motion: kinematics (A.1, A.2), one link (A.3),
-                   the coupled system and its constraint forces (3)–(12), the right-hand side
-    field.py       the tidal field about the co-moving point O (kernels used by core)
-    stepping.py    advance: one control interval by DP5(4) (dopri5.py), TR-BDF2 (trbdf2.py)
-                   or the IMEX pair (imex.py); a quiet segment's by the quiet integrator
-    switching.py   capture, release, basis switch, plastic impact
-    observe.py     sensors, observables, energy, momentum
-    modes.py       linearisation: the linear plant, coupled frequencies
-    beam_modes.py  the links' modal bases (shapes, integrals)
+The engine holds three parts, the Pinocchio way: the model, which does not change during a
+run (`ReferenceModel`: parameters, modal bases, the kernels' arrays); the state, which the
+algorithms read and write (`x`, the switching configuration `cfg`, time `t`); and the
+`Stepper`, which owns the integrators' settings, carried steps, counters and kept
+matrices.  Observing and switching are functions of (model, state).
 
-The state: the ODE state `x` (core module doc), the switching configuration `cfg`, time `t`.
+    build.py         parameters → the model (`ReferenceModel`), the state layout, the
+                     switching configuration, the initial state
+    model_arrays.py  the data of the compiled kernels: the ODE state's coordinates, the
+                     indices of the scalar and input vectors, `ModelArrays`, `Switches`
+    kinematics.py    kinematics (A.1, A.2): frames, Jacobians, J̇q̇; joint and wrist angles
+    link.py          one link in Newtonian coordinates (A.3) and the field over its mass
+    system.py        the coupled system (3)–(12): M_g, f, the constraint rows
+    solve.py         its constraint forces (11) and accelerations (6)
+    ode.py           the right-hand side ẋ = rhs(x, u)
+    measures.py      compiled sensor values and momentum of a state
+    field.py         the tidal field about the co-moving point O (kernels of link, system)
+    stepper.py       the `Stepper`: one control interval by DP5(4) (dopri5.py), TR-BDF2
+                     (trbdf2.py) or the IMEX pair (imex.py, integration.py); a quiet
+                     segment's by the quiet integrator
+    stepping.py      `rhs_timing`, the cost of one right-hand side (rsmcheck bench)
+    switching.py     capture, release, basis switch, plastic impact
+    observe.py       sensors, observables, energy, momentum
+    modes.py         linearisation: the linear plant, coupled frequencies
+    beam_modes.py    the links' modal bases (shapes, integrals)
+    simulate.py      one call from a case to a trajectory
 """
 
 from __future__ import annotations
@@ -22,9 +35,9 @@ import numpy as np
 
 from reference_model import observe, switching
 from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, initial_state
-from reference_model.stepping import SteppingMixin
-from reference_model.trbdf2 import N_WORK
+from reference_model.model_arrays import input_vector
 from reference_model.settings import INTEGRATORS
+from reference_model.stepper import Stepper
 from rsmcheck.core.cases import Case, first_given
 from rsmcheck.core.plugins import settings_of
 from rsmcheck.core.engine import Inputs, Sensors
@@ -36,7 +49,7 @@ H_MAX = 0.05  # s, explicit DP5(4): stability bounds h near 2.5 ms anyway
 H_MAX_IMPLICIT = 1.0  # s, TR-BDF2 and IMEX: accuracy bounds the step
 
 
-class ReferenceEngine(SteppingMixin):
+class ReferenceEngine:
     """Kane–Newton reference model stepping through a case.
 
     Options: n_modes (eigenmodes per link, default the case's), rtol, integrator ("dopri5",
@@ -46,6 +59,13 @@ class ReferenceEngine(SteppingMixin):
     the engine's default.  `start`: the
     end state of a previous run this run continues from (rsmcheck.driver.initial.StartState), None
     to start from the case's [initial].
+
+    Parts: `model` (`ReferenceModel`, fixed for the run); the state `x` (ODE state), `cfg`
+    (switching `Configuration`) and `t`, which `advance`, `capture`, `release` and
+    `import_state` change; `stepper` (`Stepper`), which owns the step sizes, counters and
+    kept matrices of the integrators.  The options as resolved against the case (`rtol`,
+    `integrator`, `quiet_integrator`, `h_max` of the integrator) stay readable here; the
+    stepper is built from them and reads only its own copies.
     """
 
     name = "reference"
@@ -74,20 +94,9 @@ class ReferenceEngine(SteppingMixin):
         init = build_initial(case, self.params, start)
         self.x, self.cfg = initial_state(self.model, init)
         self.t = 0.0
-        # the step each integrator carries to its next interval (its own: the quiet
-        # integrator's longer steps would only be rejected by the explicit one)
-        self._h = {name: 1e-4 for name in (self.integrator, self.quiet_integrator)}
-        self.quiet_steps = 0
-        self.steps = 0
-        self.rejected = 0
-        self.integrator_wall = 0.0  # s inside the compiled integrator (rsmcheck bench)
-        self.atol = self._atol()
-        n = self.model.layout.nx
-        # TR-BDF2 iteration matrix, kept between control periods (stepping.py, trbdf2.integrate_trbdf2)
-        self._jac = np.zeros((n, n))
-        self._minv = np.zeros((n, n))
-        self._work = np.zeros(N_WORK)
-        self._imex_setup()  # stepping.py
+        self.stepper = Stepper(self.model, self.cfg, integrator=self.integrator,
+                               quiet_integrator=self.quiet_integrator, rtol=self.rtol, h_max=self._h_max,
+                               engine_name=self.name)
         self.capture_arm = case.capture.arm
         self.capture_point = np.asarray(self.params.geometry.grasp_T(case.capture.arm), float)
 
@@ -96,21 +105,24 @@ class ReferenceEngine(SteppingMixin):
         return self.t
 
     def advance(self, t_next: float, inputs: Inputs) -> None:
-        self._advance(t_next, inputs)  # stepping.py
+        # an interval longer than the case's control period belongs to a quiet segment
+        quiet = self.case.solver.is_quiet(t_next - self.t)
+        self.x = self.stepper.advance(self.model, self.cfg, self.x, self.t, t_next, input_vector(inputs), quiet)
+        self.t = t_next
 
     def sensors(self) -> Sensors:
         return observe.sensors(self.model, self.t, self.x, self.cfg)
 
     def observe(self, inputs: Inputs) -> dict:
-        return observe.observables(self.model, self.t, self.x, self.u_vector(inputs), self.cfg,
+        return observe.observables(self.model, self.t, self.x, input_vector(inputs), self.cfg,
                                    self.capture_arm, self.capture_point)
 
     def capture(self, arm: int) -> dict[str, float]:
-        self._new_system()
+        self.stepper.new_system()
         return switching.capture(self.model, self.x, self.cfg, arm)
 
     def release(self, arm: int) -> dict[str, float]:
-        self._new_system()
+        self.stepper.new_system()
         return switching.release(self.model, self.x, self.cfg, arm)
 
     # ---- exact state for phase chaining (rsmcheck.orchestration.chain) ----------------------------
@@ -157,16 +169,34 @@ class ReferenceEngine(SteppingMixin):
         names = {"dopri5": "Dormand-Prince 5(4), embedded error control",
                  "trbdf2": "TR-BDF2 (L-stable ESDIRK), embedded 3rd-order error estimate",
                  "imex": "ARK5(4)8L[2]SA IMEX (stiff shapes implicit), embedded error control"}
-        quiet = {} if self.quiet_integrator == self.integrator else {
-            "quiet_integrator": names[self.quiet_integrator], "quiet_steps": self.quiet_steps}
-        return {"integrator": names[self.integrator], **quiet, "rtol": self.rtol,
-                "h_max": self.h_max,
-                "jacobians": self._jacobians(),
+        stepper = self.stepper
+        quiet = {} if stepper.quiet_integrator == stepper.integrator else {
+            "quiet_integrator": names[stepper.quiet_integrator], "quiet_steps": stepper.quiet_steps}
+        return {"integrator": names[stepper.integrator], **quiet, "rtol": stepper.rtol,
+                "h_max": stepper.h_max[stepper.integrator],
+                "jacobians": stepper.jacobians(),
                 "control_period": self.case.solver.control_period,
                 "n_modes": ",".join(str(n) for n in self.model.n_eigen),
                 "static_modes": int(self.model.static_modes),
-                "steps": self.steps, "rejected_steps": self.rejected,
-                "wall_integrator_s": self.integrator_wall}
+                "steps": stepper.steps, "rejected_steps": stepper.rejected,
+                "wall_integrator_s": stepper.integrator_wall}
 
     def versions(self) -> dict[str, str]:
         return package_versions("rsmcheck", "numpy", "numba", "scipy")
+
+    # ---- the stepper's counters, read by the orchestration and the tests -----------------
+    @property
+    def steps(self) -> int:
+        return self.stepper.steps
+
+    @property
+    def rejected(self) -> int:
+        return self.stepper.rejected
+
+    @property
+    def quiet_steps(self) -> int:
+        return self.stepper.quiet_steps
+
+    @property
+    def integrator_wall(self) -> float:
+        return self.stepper.integrator_wall

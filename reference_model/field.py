@@ -1,9 +1,9 @@
 """The acceleration field felt in the co-moving frame of the reference point O
 (docs/physics.md §5): the exact tidal acceleration and its potential, compiled kernels of
-one point each (numba), called by `reference_model.core` (the field's generalised forces on
-the base, the links' Gauss points and the target) and `reference_model.observe` (the
-gravitational energy).  The Exudyn model has its own `exudyn_model/field.py`, written from
-the same formulas.
+one point each (numba), called by `reference_model.system` (the field's generalised forces
+on the base and the target), `reference_model.link` (on the links' Gauss points, and their
+potential) and `reference_model.observe` (the gravitational energy).  The Exudyn model has
+its own `exudyn_model/field.py`, written from the same formulas.
 
 A mass element at ρ (relative to O, inertial axes) feels
     Δg(ρ) = g(r_O + ρ) − g(r_O),  g(r) = −μ r/|r|³,

@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from reference_model.core import rhs
+from reference_model.ode import rhs
 from reference_model.integration import ACCEPTED, NON_FINITE, UNDERFLOW, jacobian_columns, judge_step, step_toward
 
 #: shapes whose own frequency √(k/m)/2π is above this [Hz] are integrated implicitly: the

@@ -1,6 +1,6 @@
 """What the reference's integrators share (numba): the PI step-size controller of the
 embedded 5(4) pairs (`dopri5.py`, `imex.py`: the step toward the interval's end, the
-verdict on a step from its error) and finite-difference Jacobian columns of `core.rhs`
+verdict on a step from its error) and finite-difference Jacobian columns of `ode.rhs`
 (`trbdf2.py`, `imex.py`).
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from reference_model.core import rhs
+from reference_model.ode import rhs
 
 
 #: verdicts of `judge_step`

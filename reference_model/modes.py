@@ -4,7 +4,7 @@ of the robot at rest (`rsmcheck modes`).  Mirrors `exudyn_model/modes.py`: the s
 functions with the same signatures (rsmcheck/core/engine.py), so the orchestration asks both
 engines the same way; `engine_options` go to `ReferenceEngine` (e.g. n_modes).
 
-Both are central differences of the reference's own ODE (`core.rhs`) and sensors about
+Both are central differences of the reference's own ODE (`ode.rhs`) and sensors about
 the initial state x₀ of the case: the oscillatory eigenvalues of ∂ẋ/∂x are the coupled
 frequencies (Baumgarte's real ones drop out).
 """
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from reference_model import core
 from reference_model.engine import ReferenceEngine
+from reference_model.model_arrays import N_INPUTS, U_TAU_B, U_TAU_M
 from rsmcheck.core.cases import at_rest, undamped
 
 
@@ -33,7 +33,7 @@ def linear_plant(case, outputs, n_inputs: int = 7, eps: float = 1e-7, **engine_o
     ref = ReferenceEngine(case, **engine_options)
     model, x0, cfg = ref.model, ref.x.copy(), ref.cfg
     m = 2 * model.layout.ns
-    u0 = np.zeros(core.N_INPUTS)
+    u0 = np.zeros(N_INPUTS)
     A, B, cols = np.zeros((m, m)), np.zeros((m, n_inputs)), []
     for i in range(m):
         e = eps * max(1.0, abs(x0[i]))
@@ -48,6 +48,6 @@ def linear_plant(case, outputs, n_inputs: int = 7, eps: float = 1e-7, **engine_o
     ref.x = x0
     for j in range(n_inputs):
         u = u0.copy()
-        u[core.U_TAU_M + j if j < 6 else core.U_TAU_B] = 1.0
+        u[U_TAU_M + j if j < 6 else U_TAU_B] = 1.0
         B[:, j] = model.rhs(x0, u, cfg)[:m] - model.rhs(x0, u0, cfg)[:m]
     return A, B, np.array(cols).T

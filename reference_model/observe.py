@@ -11,17 +11,21 @@ import math
 
 import numpy as np
 
-from reference_model import core
+from reference_model import kinematics
 from reference_model.build import Configuration, ReferenceModel
 from reference_model.field import tidal_potential
+from reference_model.link import links_tidal_potential
+from reference_model.measures import momentum, sensor_values
+from reference_model.model_arrays import N_LINKS, U_TAU_B, U_TAU_M
+from reference_model.solve import solve_constrained
 from rsmcheck.core.engine import Sensors
 from rsmcheck.core.geometry import rot
 
 
 def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> np.ndarray:
     """(p_x, p_y, L_z): linear momentum and angular momentum about O of base, links, target
-    (`core.momentum`, exactly from the modal integrals)."""
-    return core.momentum(np.asarray(x, float), *model.core_args(cfg))
+    (`measures.momentum`, exactly from the modal integrals)."""
+    return momentum(np.asarray(x, float), *model.core_args(cfg))
 
 
 def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Configuration,
@@ -39,7 +43,7 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
     q = x[lay.q]
     kin = model.kinematics(q, x[lay.qd], cfg)
     el = 0.0
-    for i in range(core.N_LINKS):
+    for i in range(N_LINKS):
         n = lay.n_modes[i]
         a = q[lay.modes(i)]
         el += 0.5 * a @ model.arrays.k_ff[i, cfg.basis[i], :n, :n] @ a
@@ -57,34 +61,34 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
     return np.array([kinetic, el, grav])
 
 
-def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration, kin: core.Kinematics) -> float:
+def tidal_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration, kin: kinematics.Kinematics) -> float:
     """Tidal potential energy about O [J]: base and target at their COM, the links over
-    their Gauss points (`core.links_tidal_potential`); `kin` the state's kinematics."""
+    their Gauss points (`link.links_tidal_potential`); `kin` the state's kinematics."""
     lay = model.layout
     prm = model.params
     q = x[lay.q]
     rO = x[lay.r_O]
     mB = prm.base.mass - x[lay.m_used]
     e = mB * tidal_potential(rO, q[0:2]) + prm.target.mass * tidal_potential(rO, x[lay.target][0:2])
-    e += core.links_tidal_potential(q, kin.th, kin.R, rO, model.arrays, cfg.basis)
+    e += links_tidal_potential(q, kin.th, kin.R, rO, model.arrays, cfg.basis)
     return prm.orbit.mu * e
 
 
 def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
-                 kin: core.Kinematics) -> tuple[np.ndarray, np.ndarray]:
+                 kin: kinematics.Kinematics) -> tuple[np.ndarray, np.ndarray]:
     """ψ_w, ψ̇_w of both wrists: θ_T relative to the distal end section of the terminal link
     (docs/physics.md §4.3), whether or not the arm holds the target; `kin` the state's
     kinematics."""
     lay = model.layout
     q, qd = x[lay.q], x[lay.qd]
-    return core.wrist_angles(q, qd, x[lay.target], x[lay.target_d], kin.th, kin.om, model.arrays, cfg.basis)
+    return kinematics.wrist_angles(q, qd, x[lay.target], x[lay.target_d], kin.th, kin.om, model.arrays, cfg.basis)
 
 
 def sensors(model: ReferenceModel, t: float, x: np.ndarray, cfg: Configuration) -> Sensors:
     """What the shared driver's controllers and supervisor read at time t (rsmcheck.core.engine.Sensors)."""
     lay = model.layout
     q, qd = x[lay.q], x[lay.qd]
-    rE, rEd, psi, psid, psi_w, com, m = core.sensor_values(x, *model.core_args(cfg))
+    rE, rEd, psi, psid, psi_w, com, m = sensor_values(x, *model.core_args(cfg))
     c, s = math.cos(q[2]), math.sin(q[2])
     d = com - q[0:2]
     return Sensors(
@@ -111,8 +115,8 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
     q = x[lay.q]
     XT = x[lay.target]
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
-    _, Rc = core.solve_constrained(Mg, f, A, Bs, model.arrays)
-    rE, rEd, psi_J, _, psi_w, com, msys = core.sensor_values(x, *model.core_args(cfg))
+    _, Rc = solve_constrained(Mg, f, A, Bs, model.arrays)
+    rE, rEd, psi_J, _, psi_w, com, msys = sensor_values(x, *model.core_args(cfg))
     AB_T = rot(q[2]).T
     rB = q[0:2]
     reaction = np.zeros(4)
@@ -125,7 +129,7 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
             row += 2
     cap = XT[0:2] + rot(XT[2]) @ capture_point_T
     deflection = np.zeros(6)
-    for i in range(core.N_LINKS):
+    for i in range(N_LINKS):
         deflection[i] = model.bases[i][int(cfg.basis[i])].phi_mid @ q[lay.modes(i)]
     # LVLH of the base: x radial outward, y along-track; without an orbit, inertial axes
     r_abs = x[lay.r_O] + rB
@@ -146,8 +150,8 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
         "joint_frame_angles": q[3:9].copy(),
         "wrist_angles": psi_w,
         "motor_angles": x[lay.motors].copy(),
-        "motor_torques": u[core.U_TAU_M:core.U_TAU_M + 6].copy(),
-        "base_torque": float(u[core.U_TAU_B]),
+        "motor_torques": u[U_TAU_M:U_TAU_M + 6].copy(),
+        "base_torque": float(u[U_TAU_B]),
         "link_deflection": deflection,
         "target_attitude": float(XT[2]),
         "reaction_forces_I": reaction,

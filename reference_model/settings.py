@@ -10,7 +10,7 @@ from typing import Any, Callable, Mapping
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.schema import choice, engine_table, flag, number
 
-#: the integrators (reference_model/stepping.py)
+#: the integrators (reference_model/stepper.py)
 INTEGRATORS = ("dopri5", "trbdf2", "imex")
 #: eigenmodes per link unless a case says otherwise (the paper's two)
 N_MODES_DEFAULT = (2,) * 6

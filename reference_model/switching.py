@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reference_model import core
+from reference_model.model_arrays import N_INPUTS
 from reference_model.beam_modes import PF, PP, quadrature
 from reference_model.build import Configuration, ReferenceModel
 from rsmcheck.core.geometry import rot
@@ -187,7 +187,7 @@ def project_velocities(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
     With nothing dropped and a grasp just added it is the plastic impact of §4.2.
     """
     lay = model.layout
-    Mg, _, A, *_ = model.assemble(x, np.zeros(core.N_INPUTS), cfg)
+    Mg, _, A, *_ = model.assemble(x, np.zeros(N_INPUTS), cfg)
     Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
     if dropped is not None:
         Yd = Yd + np.linalg.solve(Mg, dropped)
@@ -203,6 +203,6 @@ def kinetic_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> 
     """½ Ẏᵀ M Ẏ [J]: base, links (J_extra included) and target; the rotors are not touched
     by a switch."""
     lay = model.layout
-    Mg = model.assemble(x, np.zeros(core.N_INPUTS), cfg)[0]
+    Mg = model.assemble(x, np.zeros(N_INPUTS), cfg)[0]
     Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
     return float(0.5 * Yd @ Mg @ Yd)

@@ -10,7 +10,7 @@ as a stiffly accurate ESDIRK with an explicit first stage:
            filtered by (I − d h J)⁻¹ (Shampine) so stiff components do not shrink h.
 
 L-stable, second order; both implicit stages use the same iteration matrix I − d h J,
-so one Jacobian (finite differences of `core.rhs`) and one inverse serve many steps: the
+so one Jacobian (finite differences of `ode.rhs`) and one inverse serve many steps: the
 Jacobian is recomputed only when Newton fails to converge, the inverse when h changes.
 It lets a quiet system take steps far beyond the explicit stability limit (~0.46 ms with
 the static correction shapes' ~1 kHz modes, ~2.5 ms for the 160 Hz link modes without
@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from reference_model.core import rhs
+from reference_model.ode import rhs
 from reference_model.integration import jacobian_columns
 
 _GAMMA = 2.0 - math.sqrt(2.0)

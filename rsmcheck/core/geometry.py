@@ -7,7 +7,7 @@
 
 These serve inputs (initial configurations, the controllers' own kinematic model) and
 outputs (observables, chained end states, drawings).  Each engine still builds its own
-model of the flexible links, and the compiled kernels of reference_model/core.py keep
+model of the flexible links, and the compiled kernels of reference_model/kinematics.py keep
 their own inline arithmetic.  Plain float arithmetic where a controller calls it at every
 control sample.
 """

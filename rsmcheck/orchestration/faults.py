@@ -27,7 +27,7 @@ nothing: it shows that the gate is not a change detector for text.
 Every fault starts from an empty numba cache (compiled once in the probe's process, then
 loaded by its workers).  numba keys a cached function on its own file's stamp, not on the
 files it calls into: with the copy's cache kept, the compiled integrator
-(reference_model/stepping.py) went on calling the unfaulted core.py it had been compiled
+(reference_model/stepping.py) went on calling the unfaulted kernels it had been compiled
 against, and a fault of `rhs` — the propellant's mass flow T/(Isp g0) with the wrong g0 — left
 thrust_burn's system mass exactly unchanged (918.668075676539 kg both; 918.668168535508
 with a fresh cache).

@@ -13,7 +13,7 @@ converges like their series: w'(0) under C_0 alone is (6/π²) Σ_{j≤N} 1/j² 
 value (0.61, 0.76, 0.81, 0.85 for N = 1…4), w(L/2) like Σ 1/j³ (+3.2 % for N = 1, 2); with
 the two static correction shapes (docs/physics.md §2.4) the response is exact for every N.
 
-Energy consistency: the generalised force that `core.assemble` applies at rest (no
+Energy consistency: the generalised force that `system.assemble` applies at rest (no
 gravity) is −∂V/∂q of the elastic energy it reports (`energy` observable: links, joint
 springs on ψ_J − θ_m, wrist bistop on ψ_w).
 """
@@ -25,9 +25,9 @@ import math
 import numpy as np
 import pytest
 
-from reference_model import core
 from reference_model.beam_modes import PF, PP, modal_basis
 from reference_model.build import Configuration, ReferenceModel, terminal_basis
+from reference_model.model_arrays import N_INPUTS
 from reference_model.observe import energy_of_state
 from rsmcheck.core.params import Params
 
@@ -102,7 +102,7 @@ def test_generalised_forces_derive_from_the_elastic_energy(static_modes):
     model = ReferenceModel(Params(), 2, static_modes=static_modes)
     lay = model.layout
     rng = np.random.default_rng(11)
-    u = np.zeros(core.N_INPUTS)
+    u = np.zeros(N_INPUTS)
     grasp = (1, 0)
     cfg = Configuration(grasp_on=np.array(grasp), rho_G=np.zeros((2, 2)), basis=terminal_basis(grasp))
     x = model.zero_state()

@@ -118,7 +118,7 @@ def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(
     engine = ReferenceEngine(case, integrator="imex", n_modes=n_modes)
     lay = engine.model.layout
     expected = [lay.mode_offset[i] + j for i in range(6) for j in per_link]
-    np.testing.assert_array_equal(engine._stiff, np.r_[expected, np.add(expected, lay.ns)])
+    np.testing.assert_array_equal(engine.stepper.imex.stiff, np.r_[expected, np.add(expected, lay.ns)])
     # the same shapes stand above STIFF_HZ in the PP and the PF basis of every link
     arrays = engine.model.arrays
     for i, n in enumerate(lay.n_modes):
@@ -156,17 +156,17 @@ def test_one_step_per_control_sample_where_the_explicit_pair_needs_two():
     for name in ("ee1_pos_B", "ee2_pos_B", "joint_angles"):
         assert np.max(np.abs(imex_run.observables[name] - dp5_run.observables[name])) < 1e-9, name
     # L = ∂f/∂x_S was evaluated once per REFRESH_S of simulated time (and at the start)
-    assert imex_engine._imex_work[imex.W_JACOBIANS] == np.ceil(0.3 / imex.REFRESH_S)
+    assert imex_engine.stepper.imex.work[imex.W_JACOBIANS] == np.ceil(0.3 / imex.REFRESH_S)
 
 
 def test_a_change_of_the_system_forces_a_new_L(ringing_chain):
     case = ringing_chain
     engine = ReferenceEngine(case, integrator="imex")
     _advance(engine, 0.01, 1e-3)
-    assert engine._imex_work[imex.W_JACOBIANS] == 1
+    assert engine.stepper.imex.work[imex.W_JACOBIANS] == 1
     engine.release(1)
     engine.advance(0.011, Inputs())
-    assert engine._imex_work[imex.W_JACOBIANS] == 2
+    assert engine.stepper.imex.work[imex.W_JACOBIANS] == 2
 
 
 def test_the_quiet_segments_go_to_the_quiet_integrator():

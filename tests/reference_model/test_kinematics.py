@@ -1,6 +1,6 @@
 """Jacobians (A.1), J̇q̇ (A.2) and the mass matrix of eq. (6) against calculus.
 
-* J (JR, Jth, JE) against central differences of the positions core.kinematics returns;
+* J (JR, Jth, JE) against central differences of the positions kinematics.kinematics returns;
 * J̇q̇ (cR, cE) against central differences of J along q̇:
   (J(q + εq̇) − J(q − εq̇))/2ε · q̇ — relative error ≤ 1e-6;
 * M_g of `assemble` symmetric positive definite at 100 seeded random states, with modes,
@@ -19,9 +19,9 @@ import math
 import numpy as np
 import pytest
 
-from reference_model import core
 from reference_model.beam_modes import PF
 from reference_model.build import Configuration, ReferenceModel, terminal_basis
+from reference_model.model_arrays import N_INPUTS
 from rsmcheck.core.params import Params
 
 JDOT_REL_TOL = 1e-6
@@ -140,7 +140,7 @@ def test_end_effector_is_the_distal_pin_with_tip_deflection(model):
 def test_mass_matrix_symmetric_positive_definite_at_random_states(model):
     rng = np.random.default_rng(12345)
     lay = model.layout
-    u = np.zeros(core.N_INPUTS)
+    u = np.zeros(N_INPUTS)
     worst_asym = 0.0
     min_ratio = np.inf
     for trial in range(N_RANDOM):
@@ -190,7 +190,7 @@ def test_mass_matrix_is_the_kinetic_metric(model):
     rng = np.random.default_rng(99)
     lay = model.layout
     p = model.params
-    u = np.zeros(core.N_INPUTS)
+    u = np.zeros(N_INPUTS)
     for trial in range(20):
         q, qd = random_state(model, rng)
         cfg = random_cfg(model, rng)
@@ -219,7 +219,7 @@ def test_velocity_forces_are_lagranges_from_the_mass_matrix():
     prm = P.from_overrides({"link": {"damping_ratio": 0.0}, "motor": {"damping": 0.0}}, "test")
     mdl = ReferenceModel(prm, (2, 3, 2, 1, 2, 4))
     lay = mdl.layout
-    u = np.zeros(core.N_INPUTS)
+    u = np.zeros(N_INPUTS)
     rng = np.random.default_rng(31)
     worst = 0.0
     for trial in range(10):

@@ -2,7 +2,7 @@
 
 The frequencies are not read from `beam_modes.omega` (that is ω = β² sqrt(EI/ρA), the
 formula the data were derived with).  They come from the floating-frame mass matrix that
-`core.link_newton` builds for one link at zero deflection and from the stiffness the same
+`link.link_newton` builds for one link at zero deflection and from the stiffness the same
 function applies (V_A = −K_ff A, extracted column by column with unit amplitudes), i.e. from
 the curvature integral ∫EI φ''φ'' of the scaled shapes and the 64-point quadrature.
 Boundary conditions of Table 2:
@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 from scipy.linalg import eigh
 
-from reference_model import core
 from reference_model.beam_modes import PF, PP, beta_l
 from reference_model.build import Configuration, ReferenceModel
+from reference_model.link import link_newton
 from rsmcheck.core.params import TABLE2_HZ, Params
 
 TABLE2_REL_TOL = 5e-4  # 0.05 %
@@ -32,7 +32,7 @@ TABLE2_REL_TOL = 5e-4  # 0.05 %
 
 def _link_matrices(model: ReferenceModel, basis: int, link: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """(M, K) of link `link` in `basis` at zero deflection and rest, Newtonian coordinates
-    X = [R_x, R_y, θ, A_1..A_n], from core.link_newton."""
+    X = [R_x, R_y, θ, A_1..A_n], from link.link_newton."""
     lay = model.layout
     cfg = Configuration()
     cfg.basis[:] = basis
@@ -43,7 +43,7 @@ def _link_matrices(model: ReferenceModel, basis: int, link: int = 2) -> tuple[np
         qd = np.zeros(nq)
         th, om = model.kinematics(q, qd, cfg)[:2]
         M, V = np.empty((3 + n, 3 + n)), np.empty(3 + n)
-        core.link_newton(link, q, qd, th, om, model.arrays, cfg.basis, M, V)
+        link_newton(link, q, qd, th, om, model.arrays, cfg.basis, M, V)
         return M, V
 
     q0 = np.zeros(nq)

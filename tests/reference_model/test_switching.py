@@ -21,10 +21,11 @@ import math
 import numpy as np
 import pytest
 
-from reference_model import core, switching
+from reference_model import switching
 from reference_model.beam_modes import PF, PP
 from reference_model.engine import ReferenceEngine
 from reference_model.build import ReferenceModel
+from reference_model.model_arrays import N_INPUTS
 from reference_model.observe import energy_of_state, momentum_of_state
 
 PIN_TOL = 1e-9  # m and m/s
@@ -223,8 +224,8 @@ def test_undeformed_link_switches_exactly(make_case):
 # capture (plastic impact) and release
 # ---------------------------------------------------------------------------------------
 def _momentum_energy(model, x, cfg):
-    Mg = model.assemble(x, np.zeros(core.N_INPUTS), cfg)[0]
-    return momentum_of_state(model, x, cfg), energy_of_state(model, x, np.zeros(core.N_INPUTS), cfg, Mg)
+    Mg = model.assemble(x, np.zeros(N_INPUTS), cfg)[0]
+    return momentum_of_state(model, x, cfg), energy_of_state(model, x, np.zeros(N_INPUTS), cfg, Mg)
 
 
 def test_plastic_impact_conserves_momentum_and_dissipates(make_case):
@@ -261,7 +262,7 @@ def test_plastic_impact_conserves_momentum_and_dissipates(make_case):
     assert loss <= 0.5 * m_total * v_rel**2  # ≤ ½ m_eff v², m_eff ≤ the total mass
     assert e1[1] == e0[1]  # positions did not move: same elastic energy
     # on the manifold: φ = 0 (held point = coincident point), φ̇ = 0 after the impact
-    _, _, A, phi, phid, *_ = model.assemble(x, np.zeros(core.N_INPUTS), cfg)
+    _, _, A, phi, phid, *_ = model.assemble(x, np.zeros(N_INPUTS), cfg)
     assert np.abs(phi).max() <= 1e-14
     assert np.abs(phid).max() <= 1e-12 * v_rel
 

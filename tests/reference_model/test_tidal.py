@@ -135,15 +135,15 @@ def test_generalised_tidal_forces_derive_from_the_energy_observable():
     """f of `assemble` (orbit on, at rest, springs relaxed) = −∂(E_elastic + E_grav)/∂Y with
     the energies of the `energy` observable: the dynamics and the reported potential agree
     (same sign, same 8-point quadrature on the deformed links, base and target at COM)."""
-    from reference_model import core
     from reference_model.build import Configuration, ReferenceModel, terminal_basis
+    from reference_model.model_arrays import N_INPUTS
     from reference_model.observe import energy_of_state
     from rsmcheck.core.params import Params
 
     model = ReferenceModel(Params(), 2, orbit=True)
     lay = model.layout
     rng = np.random.default_rng(5)
-    u = np.zeros(core.N_INPUTS)
+    u = np.zeros(N_INPUTS)
     for grasp in ((0, 0), (1, 0)):
         cfg = Configuration(grasp_on=np.array(grasp), rho_G=np.zeros((2, 2)), basis=terminal_basis(grasp))
         cfg.grasp_on[:] = 0  # no constraint rows: f is the applied generalised force

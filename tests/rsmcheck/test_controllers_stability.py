@@ -2,7 +2,7 @@
 sampled-data closed loop (reference model + the shared controller, 1 ms zero-order hold)
 at the hold configuration of p1_transport.
 
-The model is linearised by central differences of `reference_model.core.rhs`, the
+The model is linearised by central differences of `reference_model.ode.rhs`, the
 controller's proportional part by central differences of `ProgrammeController` applied
 to the sensors of the perturbed state; a joint-rate filter (a case option, off in these
 cases: eq. 14 as written) would be a discrete state of its own.  Rigid-body drift modes (zero eigenvalues of the free-floating system)
@@ -18,8 +18,9 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from reference_model import core
 from reference_model.engine import ReferenceEngine
+from reference_model.model_arrays import N_INPUTS
+from reference_model.ode import rhs
 from rsmcheck.core.cases import Segment, load_case
 from rsmcheck.core.cases import at_rest, without_orbit
 from rsmcheck.driver.controllers import ProgrammeController
@@ -46,7 +47,7 @@ def closed_loop_exponents(case_name: str) -> np.ndarray:
     def f(x, u):
         full = x0.copy()
         full[:nx] = x
-        return core.rhs(full, u, *args)[:nx]
+        return rhs(full, u, *args)[:nx]
 
     p_only = dataclasses.replace(spec, arm1=dataclasses.replace(spec.arm1, kd=(0.0, 0.0, 0.0)),
                                  arm2=dataclasses.replace(spec.arm2, kd=(0.0, 0.0, 0.0)))
@@ -59,13 +60,13 @@ def closed_loop_exponents(case_name: str) -> np.ndarray:
         engine.x = x0.copy()
         engine.x[:nx] = x
         u = ctl(engine.sensors())
-        out = np.zeros(core.N_INPUTS)
+        out = np.zeros(N_INPUTS)
         out[:6] = u.tau_m
         out[6] = u.tau_B
         return out
 
     xe = x0[:nx].copy()
-    u0 = np.zeros(core.N_INPUTS)
+    u0 = np.zeros(N_INPUTS)
     A = np.zeros((nx, nx))
     Kp = np.zeros((7, nx))
     h = 1e-7
@@ -77,7 +78,7 @@ def closed_loop_exponents(case_name: str) -> np.ndarray:
     engine.x = x0
     B = np.zeros((nx, 7))
     for j in range(7):
-        du = np.zeros(core.N_INPUTS)
+        du = np.zeros(N_INPUTS)
         du[j] = 1e-3
         B[:, j] = (f(xe, u0 + du) - f(xe, u0 - du)) / 2e-3
     M = np.zeros((nx + 7, nx + 7))

@@ -80,12 +80,12 @@ def test_closed_chain_arm2_solved_onto_grasp_point_2(tmp_path):
 
 
 def test_closed_chain_start_satisfies_the_reference_constraint(tmp_path):
-    from reference_model import core
+    from reference_model.model_arrays import N_INPUTS
     from reference_model.engine import ReferenceEngine
 
     case = case_from(tmp_path, CLOSED)
     engine = ReferenceEngine(case)
-    _, _, A, phi, phid, *_ = engine.model.assemble(engine.x, np.zeros(core.N_INPUTS), engine.cfg)
+    _, _, A, phi, phid, *_ = engine.model.assemble(engine.x, np.zeros(N_INPUTS), engine.cfg)
     assert A.shape[0] == 4
     assert np.abs(phi).max() <= 1e-12
     assert np.abs(phid).max() <= 1e-12

@@ -1,4 +1,4 @@
-"""The compiled core's linear algebra: the mass matrix's structure that the envelope
+"""The compiled solve of the coupled system (solve.py): the mass matrix's structure that the envelope
 Cholesky relies on, and the constrained solve of eqs. (6) and (11) against a dense one."""
 
 from __future__ import annotations
@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reference_model import core
+from reference_model.model_arrays import N_INPUTS
+from reference_model.solve import solve_constrained
+from reference_model.system import assemble
 from reference_model.engine import ReferenceEngine
 from rsmcheck.core.cases import load_case
 
@@ -17,7 +19,7 @@ def _random_state(name: str, seed: int, **options) -> tuple[ReferenceEngine, np.
     lay = engine.model.layout
     x = engine.x.copy()
     x[: 2 * lay.ns] += 1e-2 * rng.standard_normal(2 * lay.ns)  # off the rest pose, moving
-    return engine, x, rng.standard_normal(core.N_INPUTS)
+    return engine, x, rng.standard_normal(N_INPUTS)
 
 
 @pytest.mark.parametrize("name, options", [("p1_transport", {}), ("closed_squeeze", {"n_modes": 4}),
@@ -29,7 +31,7 @@ def test_mass_matrix_has_no_entries_outside_the_elimination_envelope(name, optio
     m, sw = engine.model.core_args(engine.cfg)
     order, first = m.order, m.first
     assert sorted(order.tolist()) == list(range(engine.model.layout.ny))
-    Mg = core.assemble(x, u, m, sw)[0]
+    Mg = assemble(x, u, m, sw)[0]
     P = Mg[np.ix_(order, order)]
     outside = [(r, c) for r in range(len(order)) for c in range(first[r]) if P[r, c] != 0.0]
     assert outside == []
@@ -43,8 +45,8 @@ def test_constrained_solve_matches_a_dense_solve(name):
     bordered system [[Mg, Gᵀ], [G, 0]] [Ÿ; R_cl] = [f; B*] (W = −Gᵀ)."""
     engine, x, u = _random_state(name, 2)
     m, sw = engine.model.core_args(engine.cfg)
-    Mg, f, G, _, _, Bs, *_ = core.assemble(x, u, m, sw)
-    ydd, Rcl = core.solve_constrained(Mg, f, G, Bs, m)
+    Mg, f, G, _, _, Bs, *_ = assemble(x, u, m, sw)
+    ydd, Rcl = solve_constrained(Mg, f, G, Bs, m)
     ny, nc = Mg.shape[0], G.shape[0]
     K = np.zeros((ny + nc, ny + nc))
     K[:ny, :ny] = Mg

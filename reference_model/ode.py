@@ -1,0 +1,29 @@
+"""The right-hand side of the reference's ODE, compiled: ẋ = rhs(x, u) of the state of
+model_arrays.py, what every integrator calls.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from reference_model.model_arrays import S_ISPG0, U_THRUST
+from reference_model.solve import solve_constrained
+from reference_model.system import assemble
+
+
+@njit(cache=True)
+def rhs(x, u, m, sw):
+    """ẋ of the full ODE: eq. (7) with (11)–(12), the reference point and mass depletion."""
+    ny = m.nq + 3
+    ns = ny + 6
+    Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO = assemble(x, u, m, sw)
+    ydd, Rcl = solve_constrained(Mg, f, G, Bs, m)
+    dx = np.empty_like(x)
+    dx[0:ns] = x[ns:2 * ns]
+    dx[ns:ns + ny] = ydd
+    dx[ns + ny:2 * ns] = thmdd
+    dx[2 * ns:2 * ns + 2] = x[2 * ns + 2:2 * ns + 4]
+    dx[2 * ns + 2:2 * ns + 4] = aO
+    dx[2 * ns + 4] = u[U_THRUST] / m.sc[S_ISPG0]
+    return dx
