@@ -7,7 +7,8 @@ convergence studies, speed, fault injection) and runs nothing.  The page, top to
 1. the verdict — every check of every case, mission phase, golden and Pinocchio quantity
    in one table, failures first, then by margin (tolerance / error), smallest first — and
    the provenance (commit, versions, platform, solver settings, date);
-2. the known departures from the paper with their measured sizes (docs/physics.md §9);
+2. the known departures from the paper with their measured sizes (rsmcheck/core/departures.toml,
+   the table of docs/physics.md §9);
 3. the mission as one flight: each phase's compared observables on the mission's time
    axis, both engines overlaid, the error below on a log scale with the tolerance, the
    phase's events marked;
@@ -33,6 +34,7 @@ from typing import Any, Sequence
 import jinja2
 import plotly.offline
 
+from rsmcheck.core import departures
 from rsmcheck.core.cases import Case, list_cases, load_case
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import BY_NAME
@@ -48,7 +50,6 @@ from rsmcheck.core.store import EngineRun, machine_text, read_run, same_machine,
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA_DIR = ROOT / "docs" / "data"
-PHYSICS_DOC = ROOT / "docs" / "physics.md"
 #: what a reader looks at in every case besides its compared observables
 OVERVIEW = ("base_pose_I", "joint_angles", "motor_torques", "link_deflection", "energy", "momentum_I")
 
@@ -196,20 +197,9 @@ def _stored_json(data_dir: Path, pattern: str) -> list[tuple[Path, dict]]:
 
 
 def departures_table() -> tuple[list[str], list[list[str]]]:
-    """The table of docs/physics.md §9 (paper, suite, why, measured size): header, rows."""
-    lines = PHYSICS_DOC.read_text(encoding="utf-8").splitlines()
-    start = next((i for i, l in enumerate(lines) if l.startswith("## 9.")), None)
-    if start is None:
-        return [], []
-    table = []
-    for line in lines[start + 1:]:
-        if line.startswith("## "):
-            break
-        if line.startswith("|"):
-            table.append([c.strip() for c in line.strip().strip("|").split("|")])
-    if len(table) < 2:
-        return [], []
-    return table[0], [r for r in table[2:]]
+    """The departures from the paper (paper, suite, why, measured size): header, rows, from
+    the package's data file (rsmcheck.core.departures; docs/physics.md §9 shows the same)."""
+    return departures.table()
 
 
 # ---------------------------------------------------------------------------------------

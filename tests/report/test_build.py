@@ -93,10 +93,17 @@ def test_every_figure_has_its_data_and_the_page_stays_small(rendered):
     assert rendered.page.stat().st_size < 25e6
 
 
-def test_departures_come_from_docs_physics():
+def test_departures_come_from_the_data_file(rendered):
+    """The package's departures table (rsmcheck/core/departures.toml), each row on the page."""
+    from rsmcheck.core.departures import table
+
     head, rows = departures_table()
+    assert (head, rows) == table()
     assert head[0].startswith("paper") and len(head) == 4
     assert rows and all(len(r) == 4 for r in rows)
+    section = rendered.html[rendered.html.index('<section id="departures">'):]
+    section = section[:section.index("</section>")]
+    assert len(re.findall(r"<tr><td", section)) == len(rows)
 
 
 def test_stored_studies_and_faults_render_from_a_data_folder(rendered, tmp_path):
