@@ -23,6 +23,7 @@ import math
 import os
 import platform
 import subprocess
+import tempfile
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -60,6 +61,12 @@ def _writable_folder(path: Path, target: Path, field: str) -> None:
         raise InputError(str(target), field, f"{at} is not a directory")
     if not os.access(at, os.W_OK | os.X_OK):
         raise InputError(str(target), field, f"cannot write in {at} (permission denied)")
+    # access() says yes to root everywhere and knows nothing of read-only or virtual file
+    # systems (/proc): create and remove an empty folder there
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".rsmcheck-probe-", dir=at))
+    except OSError as exc:
+        raise InputError(str(target), field, f"cannot create anything in {at} ({exc.strerror or exc})") from None
 
 
 def output_dir(value: str | os.PathLike[str], field: str = "--out") -> Path:
