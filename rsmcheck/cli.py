@@ -58,12 +58,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    out = output_file(args.out, "--out")  # before anything runs or is imported
     # lazy: collect and the report read rsmcheck.orchestration.modes, whose scipy (with
     # plotly, jinja2) takes `rsmcheck --help` from 0.4 s to 1.0 s when imported at the top
     from rsmcheck.orchestration.collect import collect
     from rsmcheck.report.build import render
 
-    out = output_file(args.out, "--out")  # before anything runs
     folder = out.parent
     if not args.render_only:
         res = collect(folder, args.short, _engine_names(args.engine), args.cases or None, _progress,

@@ -297,8 +297,14 @@ def git_commit(repo: str | os.PathLike[str] | None = None) -> tuple[str, str]:
     "unknown".  The goldens (`goldens/`) do not count: they are what `bless` writes, no
     run reads them, and a bless of several cases would otherwise record its own first
     goldens as uncommitted changes of the code.
+
+    Only a work tree's top folder counts (`.git` in it): a package installed into a
+    folder that lies inside some other repository (a virtual environment in a project)
+    is "unknown", not that repository's commit.
     """
     cwd = Path(repo) if repo is not None else Path(__file__).resolve().parents[2]
+    if not (cwd / ".git").exists():
+        return "unknown", "unknown"
     try:
         head = subprocess.run(
             ["git", "rev-parse", "--verify", "--quiet", "HEAD"],
