@@ -42,7 +42,7 @@ from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.bench_diff import work
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.orchestration.compare import metric_label
-from rsmcheck.orchestration.gate import golden_path, read_golden
+from rsmcheck.orchestration.gate import GOLDEN_DIR, golden_path, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
 from rsmcheck.report.plots import comparison_figure, run_marks, simple_figure
@@ -92,8 +92,15 @@ class VerdictRow:
     anchor: str = ""
 
 
-def verdict_rows(verdict: dict) -> list[VerdictRow]:
-    """Every row of the stored verdict, failures first, then the smallest margin first."""
+def no_golden(g: dict) -> bool:
+    """A stored gate row that compared nothing: there was no golden for the run."""
+    return bool(g.get("inputs_changed")) and g["inputs_changed"][0].startswith("no golden")
+
+
+def verdict_rows(verdict: dict, goldens: bool = True) -> list[VerdictRow]:
+    """Every row of the stored verdict, failures first, then the smallest margin first.
+    `goldens` False (no goldens/ folder: an installed package) leaves out the gate rows
+    that had no golden to compare with; the page says so in one line."""
     rows = []
     for kind, key in (("cross-check", "checks"), ("mission phase", "mission")):
         for r in verdict.get(key, []):
@@ -113,6 +120,8 @@ def verdict_rows(verdict: dict) -> list[VerdictRow]:
                                    r["error"], r["tolerance"],
                                    _margin(r.get("margin")), bool(r["pass"]), note, anchor))
     for g in verdict.get("gate", []):
+        if not goldens and no_golden(g):
+            continue
         ratio = g.get("largest_ratio")
         if ratio is not None and g.get("work_ratio") is not None:
             ratio = max(ratio, g["work_ratio"])
@@ -314,7 +323,9 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     gates: dict[str, list] = {}
     for g in v.get("gate", []):
         gates.setdefault(g["case"], []).append(g)
-    rows = verdict_rows(v)
+    goldens = GOLDEN_DIR.is_dir()
+    rows = verdict_rows(v, goldens)
+    missing_goldens = 0 if goldens else sum(no_golden(g) for g in v.get("gate", []))
     missions = mission_sections(page, st, checks)
     cases = case_sections(page, st, checks, gates)
     figures = paper.figures(page, st)
@@ -322,7 +333,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     bench = speed_sections(page, _stored_json(data_dir, "bench_*.json"))
     html_text = _environment().get_template("page.html.j2").render(
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
-        kinds=sorted({r.kind for r in rows}), missions=missions, cases=cases, paper=figures,
+        kinds=sorted({r.kind for r in rows}), missing_goldens=missing_goldens, missions=missions, cases=cases, paper=figures,
         dep_head=dep_head, dep_rows=dep_rows, pinocchio=v.get("pinocchio", []), modes=st.modes,
         studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
         faults=_stored_json(data_dir, "faults.json"),

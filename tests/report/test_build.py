@@ -215,3 +215,32 @@ def test_stored_bench_shows_the_speed_targets_and_the_phases_against_theirs(rend
     assert len(bars) == 1 and bars[0]["layout"]["yaxis"]["type"] == "log"
     assert [t["y"] for t in bars[0]["data"] if t["type"] == "bar"] == [[2.0, 40.0], [2.0, 40.0]]
     assert [t["y"] for t in bars[0]["data"] if t["type"] == "scatter"] == [[20.0, 20.0]]
+
+
+def test_without_stored_studies_or_goldens_each_section_says_so(rendered, tmp_path, monkeypatch):
+    """An installed package has no docs/data/ and no goldens/: the page still renders, and
+    each section with nothing to show says so in one line; the gate rows that had no golden
+    are left out of the verdict (counted in one line), not shown as failures."""
+    import rsmcheck.report.build as build
+
+    monkeypatch.setattr(build, "GOLDEN_DIR", tmp_path / "no-goldens")
+    doc = json.loads((rendered.folder / "verdict.json").read_text())
+    doc["gate"] = doc.get("gate", []) + [
+        {"case": "free_drift", "engine": "exudyn", "unchanged": False, "inputs_changed": ["no golden x.h5"],
+         "structure": [], "moved": [], "largest_ratio": None}]
+    folder = tmp_path / "stored"
+    folder.mkdir()
+    for item in rendered.folder.iterdir():
+        (folder / item.name).symlink_to(item)
+    (folder / "verdict.json").unlink()
+    (folder / "verdict.json").write_text(json.dumps(doc))
+    empty = tmp_path / "data"
+    empty.mkdir()
+    page = render(folder, tmp_path / "page.html", ["free_drift"], data_dir=empty).read_text()
+    for line in ("No stored engine studies here", "No stored speed measurement", "No stored fault-injection matrix",
+                 "No goldens here"):
+        assert page.count(line) == 1, line
+    n = sum(build.no_golden(g) for g in doc["gate"])
+    assert f"{n} gate comparisons left out" in page
+    assert len(verdict_rows(doc, goldens=False)) == len(verdict_rows(doc)) - n
+    assert not any(r.kind == "gate" and "no golden" in r.note for r in verdict_rows(doc, goldens=False))
