@@ -17,7 +17,7 @@ venv: $(STAMP)
 
 $(STAMP): pyproject.toml $(PACKAGE_INITS)
 	test -x $(VPY) || $(PYTHON) -m venv $(VENV)
-	$(VPY) -m pip install -e '.[test]'
+	$(VPY) -m pip install -e '.[all,test]'
 	touch $(STAMP)
 
 # pytest exit code 5 = no tests collected: make fails (as for any non-zero code) and says why.

@@ -7,7 +7,8 @@ convergence studies, speed, fault injection) and runs nothing.  The page, top to
 1. the verdict — every check of every case, mission phase, golden and Pinocchio quantity
    in one table, failures first, then by margin (tolerance / error), smallest first — and
    the provenance (commit, versions, platform, solver settings, date);
-2. the known departures from the paper with their measured sizes (docs/physics.md §9);
+2. the known departures from the paper with their measured sizes (rsmcheck/core/departures.toml,
+   the table of docs/physics.md §9);
 3. the mission as one flight: each phase's compared observables on the mission's time
    axis, both engines overlaid, the error below on a log scale with the tolerance, the
    phase's events marked;
@@ -33,6 +34,7 @@ from typing import Any, Sequence
 import jinja2
 import plotly.offline
 
+from rsmcheck.core import departures
 from rsmcheck.core.cases import Case, list_cases, load_case
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import BY_NAME
@@ -41,7 +43,7 @@ from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.bench_diff import work
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.orchestration.compare import metric_label
-from rsmcheck.orchestration.gate import golden_path, read_golden
+from rsmcheck.orchestration.gate import GOLDEN_DIR, golden_path, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
 from rsmcheck.report.plots import colour, comparison_figure, run_marks, simple_figure
@@ -49,7 +51,6 @@ from rsmcheck.core.store import EngineRun, machine_text, read_run, same_machine,
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA_DIR = ROOT / "docs" / "data"
-PHYSICS_DOC = ROOT / "docs" / "physics.md"
 #: what a reader looks at in every case besides its compared observables
 OVERVIEW = ("base_pose_I", "joint_angles", "motor_torques", "link_deflection", "energy", "momentum_I")
 
@@ -92,8 +93,15 @@ class VerdictRow:
     anchor: str = ""
 
 
-def verdict_rows(verdict: dict) -> list[VerdictRow]:
-    """Every row of the stored verdict, failures first, then the smallest margin first."""
+def no_golden(g: dict) -> bool:
+    """A stored gate row that compared nothing: there was no golden for the run."""
+    return bool(g.get("inputs_changed")) and g["inputs_changed"][0].startswith("no golden")
+
+
+def verdict_rows(verdict: dict, goldens: bool = True) -> list[VerdictRow]:
+    """Every row of the stored verdict, failures first, then the smallest margin first.
+    `goldens` False (no goldens/ folder: an installed package) leaves out the gate rows
+    that had no golden to compare with; the page says so in one line."""
     rows = []
     for kind, key in (("cross-check", "checks"), ("mission phase", "mission")):
         for r in verdict.get(key, []):
@@ -113,6 +121,8 @@ def verdict_rows(verdict: dict) -> list[VerdictRow]:
                                    r["error"], r["tolerance"],
                                    _margin(r.get("margin")), bool(r["pass"]), note, anchor))
     for g in verdict.get("gate", []):
+        if not goldens and no_golden(g):
+            continue
         ratio = g.get("largest_ratio")
         if ratio is not None and g.get("work_ratio") is not None:
             ratio = max(ratio, g["work_ratio"])
@@ -206,20 +216,9 @@ def _stored_json(data_dir: Path, pattern: str) -> list[tuple[Path, dict]]:
 
 
 def departures_table() -> tuple[list[str], list[list[str]]]:
-    """The table of docs/physics.md §9 (paper, suite, why, measured size): header, rows."""
-    lines = PHYSICS_DOC.read_text(encoding="utf-8").splitlines()
-    start = next((i for i, l in enumerate(lines) if l.startswith("## 9.")), None)
-    if start is None:
-        return [], []
-    table = []
-    for line in lines[start + 1:]:
-        if line.startswith("## "):
-            break
-        if line.startswith("|"):
-            table.append([c.strip() for c in line.strip().strip("|").split("|")])
-    if len(table) < 2:
-        return [], []
-    return table[0], [r for r in table[2:]]
+    """The departures from the paper (paper, suite, why, measured size): header, rows, from
+    the package's data file (rsmcheck.core.departures; docs/physics.md §9 shows the same)."""
+    return departures.table()
 
 
 # ---------------------------------------------------------------------------------------
@@ -335,7 +334,9 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     gates: dict[str, list] = {}
     for g in v.get("gate", []):
         gates.setdefault(g["case"], []).append(g)
-    rows = verdict_rows(v)
+    goldens = GOLDEN_DIR.is_dir()
+    rows = verdict_rows(v, goldens)
+    missing_goldens = 0 if goldens else sum(no_golden(g) for g in v.get("gate", []))
     missions = mission_sections(page, st, checks)
     cases = case_sections(page, st, checks, gates)
     figures = paper.figures(page, st)
@@ -343,9 +344,10 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     bench = speed_sections(page, _stored_json(data_dir, "bench_*.json"))
     html_text = _environment().get_template("page.html.j2").render(
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
-        kinds=sorted({r.kind for r in rows}), missions=missions, cases=cases, paper=figures,
-        dep_head=dep_head, dep_rows=dep_rows, rigid=[{"label": plugins()[n].label if n in plugins() else n, "checks": c}
-                                          for n, c in v.get("rigid", {}).items()], modes=st.modes,
+        kinds=sorted({r.kind for r in rows}), missing_goldens=missing_goldens, missions=missions, cases=cases,
+        paper=figures, dep_head=dep_head, dep_rows=dep_rows,
+        rigid=[{"label": plugins()[n].label if n in plugins() else n, "checks": c} for n, c in v.get("rigid", {}).items()],
+        modes=st.modes,
         studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
         faults=_stored_json(data_dir, "faults.json"),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),

@@ -10,11 +10,12 @@ output that goes away (`rsmcheck cases | head -1`) ends the command quietly
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
-from rsmcheck.core.cases import list_cases, load_case
+from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.orchestration import bench, compare, gate
 from rsmcheck.orchestration.chain import run_case
@@ -77,12 +78,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    out = output_file(args.out, "--out")  # before anything runs or is imported
     # lazy: collect and the report read rsmcheck.orchestration.modes, whose scipy (with
     # plotly, jinja2) takes `rsmcheck --help` from 0.4 s to 1.0 s when imported at the top
     from rsmcheck.orchestration.collect import collect
     from rsmcheck.report.build import render
 
-    out = output_file(args.out, "--out")  # before anything runs
     folder = out.parent
     if not args.render_only:
         res = collect(folder, args.short, _engine_names(args.engine), args.cases or None, _progress,
@@ -298,9 +299,27 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
 }
 
 
+CASES_DIR_HELP = (f"also read the case files of folder DIR (repeatable; before or after the command; "
+                  f"${CASES_ENV} too, {os.pathsep}-separated); a name in two folders is an error")
+
+
+def _global_options() -> argparse.ArgumentParser:
+    """The options every command takes, before or after its name (`--cases-dir`); given
+    after it they land in `cases_dir_after` (a subcommand's default would overwrite the
+    value parsed before it)."""
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument("--cases-dir", dest="cases_dir_after", action="append", metavar="DIR",
+                   default=argparse.SUPPRESS, help=CASES_DIR_HELP)
+    return p
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="rsmcheck", description="Validation benchmark for the dual-arm flexible space robot")
+    parser.add_argument("--cases-dir", action="append", metavar="DIR", default=[], help=CASES_DIR_HELP)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    common = [_global_options()]
+    add_parser = sub.add_parser
+    sub.add_parser = lambda *a, **k: add_parser(*a, parents=common, **k)  # type: ignore[method-assign]
     sub.add_parser("cases", help="list the cases, one line each")
     p = sub.add_parser("run", help="simulate cases and write DIR/CASE.h5")
     p.add_argument("case", nargs="+", help="case name (cases/NAME.toml) or path to a case file")
@@ -374,23 +393,77 @@ DELEGATED = {"bench"}
 LISTINGS = {"cases", "modes"}
 
 
+def _take_cases_dirs(argv: list[str], anywhere: bool) -> tuple[list[str], list[str]]:
+    """(the --cases-dir values, the other arguments): from the leading options only, or
+    from `anywhere` (the delegated commands, whose own parsers do not know the option)."""
+    dirs: list[str] = []
+    rest: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if not anywhere and not a.startswith("-"):
+            rest += argv[i:]
+            break
+        if a == "--cases-dir":
+            if i + 1 == len(argv):
+                sys.stderr.write("rsmcheck: argument --cases-dir: expected one argument\n")
+                raise SystemExit(2)
+            dirs.append(argv[i + 1])
+            i += 2
+            continue
+        if a.startswith("--cases-dir="):
+            dirs.append(a.partition("=")[2])
+        elif a == "--" and anywhere:
+            rest += argv[i:]
+            break
+        else:
+            rest.append(a)
+        i += 1
+    return dirs, rest
+
+
+def _use_cases_dirs(dirs: Sequence[str]) -> None:
+    """Check each --cases-dir folder and add it to $RSMCHECK_CASES_DIR, which
+    rsmcheck.core.cases reads (and the worker processes inherit)."""
+    for d in dirs:
+        if not Path(d).is_dir():
+            raise InputError("--cases-dir", d, "no such folder")
+    given = [e for e in os.environ.get(CASES_ENV, "").split(os.pathsep) if e]
+    os.environ[CASES_ENV] = os.pathsep.join(given + [str(Path(d).resolve()) for d in dirs])
+    cases_dirs()  # a missing folder in the variable: one line before anything runs
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    dirs, argv = _take_cases_dirs(argv, anywhere=False)
     plugin_commands = exit_code("rsmcheck", _plugin_commands) if argv else {}
     if isinstance(plugin_commands, int):  # a plug-in that does not load: one line, exit 2
         return plugin_commands
     if argv and argv[0] in (DELEGATED | set(plugin_commands)):
-        args = argparse.Namespace(command=argv[0], rest=argv[1:])
+        more, rest = _take_cases_dirs(argv[1:], anywhere=True)
+        args = argparse.Namespace(command=argv[0], rest=rest, cases_dir=dirs + more)
     else:
         try:
             args = build_parser().parse_args(argv)
         except SystemExit:  # --help (0) or a usage error (2): the help may meet a closed pipe
             flush_stdout()
             raise
-    command = COMMANDS.get(args.command, _plugin_command)
-    return exit_code("rsmcheck", lambda: command(args),
-                     cut_short=0 if args.command in LISTINGS or getattr(args, "tolerances", False) else 1)
+        args.cases_dir = dirs + args.cases_dir + getattr(args, "cases_dir_after", [])
+    saved = os.environ.get(CASES_ENV)
+    run = COMMANDS.get(args.command, _plugin_command)
 
+    def command() -> int:
+        _use_cases_dirs(args.cases_dir)
+        return run(args)
+
+    try:
+        return exit_code("rsmcheck", command,
+                         cut_short=0 if args.command in LISTINGS or getattr(args, "tolerances", False) else 1)
+    finally:  # main() called in-process (tests) leaves the environment as it was
+        if saved is None:
+            os.environ.pop(CASES_ENV, None)
+        else:
+            os.environ[CASES_ENV] = saved
 
 if __name__ == "__main__":
     raise SystemExit(main())

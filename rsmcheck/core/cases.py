@@ -1,4 +1,5 @@
-"""Case files: declarative TOML in cases/, loaded into typed objects and validated.
+"""Case files: declarative TOML in cases/ (and in a user's folders, `--cases-dir`,
+$RSMCHECK_CASES_DIR), loaded into typed objects and validated.
 
 A case names its initial state (or the stored end state of another case it starts from),
 duration, controller and motion programme, scheduled events, solver settings, parameter
@@ -15,8 +16,10 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import tomllib
 from dataclasses import dataclass, field, replace
+from importlib import resources
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -28,10 +31,23 @@ from rsmcheck.core.schema import arm as _arm, arms as _arms, choice as _choice, 
 from rsmcheck.core.schema import integer as _integer, number as _number, require as _require, table as _table
 from rsmcheck.core.schema import text as _text, vector as _vector
 
-#: the case files: the repository's cases/ folder, next to this package.  rsmcheck is used
-#: from a checkout (editable install, `make venv`), so the TOML files are read where they
-#: are and are not package data; a wheel installed elsewhere would not carry them.
-CASES_DIR = Path(__file__).resolve().parents[2] / "cases"
+#: environment variable naming folders of a user's own case files (os.pathsep-separated),
+#: searched besides the packaged ones; `rsmcheck --cases-dir DIR` adds to it
+CASES_ENV = "RSMCHECK_CASES_DIR"
+
+
+def packaged_cases_dir() -> Path:
+    """The project's case files: the data folder rsmcheck/case_files/ of an installed
+    package (the repository's cases/, mapped there by pyproject's package-dir), read with
+    importlib.resources; in a checkout (editable install, PYTHONPATH) cases/ itself."""
+    packaged = resources.files("rsmcheck") / "case_files"
+    if isinstance(packaged, Path) and packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parents[2] / "cases"
+
+
+#: the packaged case files (see `packaged_cases_dir`)
+CASES_DIR = packaged_cases_dir()
 
 ARM_MODES = ("hold", "freeze", "move", "approach", "carry", "off", "torque")
 TARGET_MODES = ("move", "push", "com_align")
@@ -237,27 +253,67 @@ class Case:
         return self.params.geometry.grasp_T(arm)
 
 
+# ---------------------------------------------------------------------------------------
+# where the case files are: the packaged ones and a user's folders
+# ---------------------------------------------------------------------------------------
+def user_cases_dirs() -> list[Path]:
+    """The folders of $RSMCHECK_CASES_DIR (os.pathsep-separated; empty entries skipped):
+    InputError naming the variable if one is not a folder."""
+    out = []
+    for entry in os.environ.get(CASES_ENV, "").split(os.pathsep):
+        if not entry:
+            continue
+        path = Path(entry)
+        if not path.is_dir():
+            raise InputError(CASES_ENV, entry, "no such folder of case files")
+        out.append(path)
+    return out
+
+
+def cases_dirs() -> list[Path]:
+    """Where case files are found: the packaged ones, then each user folder."""
+    return [CASES_DIR] + user_cases_dirs()
+
+
+def case_index() -> dict[str, Path]:
+    """Case name → file, over every folder of `cases_dirs`: InputError naming both files
+    when two folders hold a case of the same name (a user's case shadows nothing)."""
+    index: dict[str, Path] = {}
+    seen: set[Path] = set()
+    for folder in cases_dirs():
+        if folder.resolve() in seen:  # the same folder named twice
+            continue
+        seen.add(folder.resolve())
+        for path in sorted(folder.glob("*.toml")):
+            if path.stem in index:
+                raise InputError(str(path), "case", f"'{path.stem}' is also {index[path.stem]} (rename one)")
+            index[path.stem] = path
+    return index
+
+
 def case_path(name_or_path: str | Path) -> Path:
-    """cases/NAME.toml for a bare name, else the path as given."""
+    """The case file of a bare name (in the packaged cases or a user's folder,
+    `case_index`), else the path as given."""
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.parent != Path("."):
         return p
-    return CASES_DIR / f"{name_or_path}.toml"
+    return case_index().get(str(name_or_path), CASES_DIR / f"{name_or_path}.toml")
 
 
 def sibling_case(name: str, path: Path) -> Path:
     """The case `name` referred to from the case file `path`: NAME.toml next to it, else
-    cases/NAME.toml."""
+    the case of that name (`case_path`)."""
     near = Path(path).parent / f"{name}.toml"
     return near if near.is_file() else case_path(name)
 
 
 def list_cases() -> list[Path]:
-    return sorted(CASES_DIR.glob("*.toml"))
+    """Every case file (`case_index`), by name."""
+    return [path for _, path in sorted(case_index().items())]
 
 
 def load_case(name_or_path: str | Path) -> Case:
-    """Load and validate one case file (a bare name looks in cases/)."""
+    """Load and validate one case file (a bare name: `case_path`)."""
     path = case_path(name_or_path)
     where = str(path)
     if not path.is_file():

@@ -23,6 +23,7 @@ import math
 import os
 import platform
 import subprocess
+import tempfile
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -61,6 +62,12 @@ def _writable_folder(path: Path, target: Path, field: str) -> None:
         raise InputError(str(target), field, f"{at} is not a directory")
     if not os.access(at, os.W_OK | os.X_OK):
         raise InputError(str(target), field, f"cannot write in {at} (permission denied)")
+    # access() says yes to root everywhere and knows nothing of read-only or virtual file
+    # systems (/proc): create and remove an empty folder there
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".rsmcheck-probe-", dir=at))
+    except OSError as exc:
+        raise InputError(str(target), field, f"cannot create anything in {at} ({exc.strerror or exc})") from None
 
 
 def output_dir(value: str | os.PathLike[str], field: str = "--out") -> Path:
@@ -291,8 +298,14 @@ def git_commit(repo: str | os.PathLike[str] | None = None) -> tuple[str, str]:
     "unknown".  The goldens (`goldens/`) do not count: they are what `bless` writes, no
     run reads them, and a bless of several cases would otherwise record its own first
     goldens as uncommitted changes of the code.
+
+    Only a work tree's top folder counts (`.git` in it): a package installed into a
+    folder that lies inside some other repository (a virtual environment in a project)
+    is "unknown", not that repository's commit.
     """
     cwd = Path(repo) if repo is not None else Path(__file__).resolve().parents[2]
+    if not (cwd / ".git").exists():
+        return "unknown", "unknown"
     try:
         head = subprocess.run(
             ["git", "rev-parse", "--verify", "--quiet", "HEAD"],

@@ -94,10 +94,17 @@ def test_every_figure_has_its_data_and_the_page_stays_small(rendered):
     assert rendered.page.stat().st_size < 25e6
 
 
-def test_departures_come_from_docs_physics():
+def test_departures_come_from_the_data_file(rendered):
+    """The package's departures table (rsmcheck/core/departures.toml), each row on the page."""
+    from rsmcheck.core.departures import table
+
     head, rows = departures_table()
+    assert (head, rows) == table()
     assert head[0].startswith("paper") and len(head) == 4
     assert rows and all(len(r) == 4 for r in rows)
+    section = rendered.html[rendered.html.index('<section id="departures">'):]
+    section = section[:section.index("</section>")]
+    assert len(re.findall(r"<tr><td", section)) == len(rows)
 
 
 def test_stored_studies_and_faults_render_from_a_data_folder(rendered, tmp_path):
@@ -209,3 +216,32 @@ def test_stored_bench_shows_the_speed_targets_and_the_phases_against_theirs(rend
     assert len(bars) == 1 and bars[0]["layout"]["yaxis"]["type"] == "log"
     assert [t["y"] for t in bars[0]["data"] if t["type"] == "bar"] == [[2.0, 40.0], [2.0, 40.0]]
     assert [t["y"] for t in bars[0]["data"] if t["type"] == "scatter"] == [[20.0, 20.0]]
+
+
+def test_without_stored_studies_or_goldens_each_section_says_so(rendered, tmp_path, monkeypatch):
+    """An installed package has no docs/data/ and no goldens/: the page still renders, and
+    each section with nothing to show says so in one line; the gate rows that had no golden
+    are left out of the verdict (counted in one line), not shown as failures."""
+    import rsmcheck.report.build as build
+
+    monkeypatch.setattr(build, "GOLDEN_DIR", tmp_path / "no-goldens")
+    doc = json.loads((rendered.folder / "verdict.json").read_text())
+    doc["gate"] = doc.get("gate", []) + [
+        {"case": "free_drift", "engine": "exudyn", "unchanged": False, "inputs_changed": ["no golden x.h5"],
+         "structure": [], "moved": [], "largest_ratio": None}]
+    folder = tmp_path / "stored"
+    folder.mkdir()
+    for item in rendered.folder.iterdir():
+        (folder / item.name).symlink_to(item)
+    (folder / "verdict.json").unlink()
+    (folder / "verdict.json").write_text(json.dumps(doc))
+    empty = tmp_path / "data"
+    empty.mkdir()
+    page = render(folder, tmp_path / "page.html", ["free_drift"], data_dir=empty).read_text()
+    for line in ("No stored engine studies here", "No stored speed measurement", "No stored fault-injection matrix",
+                 "No goldens here"):
+        assert page.count(line) == 1, line
+    n = sum(build.no_golden(g) for g in doc["gate"])
+    assert f"{n} gate comparisons left out" in page
+    assert len(verdict_rows(doc, goldens=False)) == len(verdict_rows(doc)) - n
+    assert not any(r.kind == "gate" and "no golden" in r.note for r in verdict_rows(doc, goldens=False))

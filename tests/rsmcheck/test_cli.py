@@ -391,3 +391,60 @@ def test_bench_json_spells_out_a_failed_run(monkeypatch, capsys, tmp_path):
     assert doc["runs"][0]["wall_s"] is None and doc["runs"][0]["error"] == "RuntimeError: boom"
     assert doc["rhs_us"]["pinocchio_aba"] is None
     assert strict_loads(out.read_text()) == doc
+
+
+# ---------------------------------------------------------------------------------------
+# output paths where nothing can be created (/proc: root passes access(), mkdir fails)
+# ---------------------------------------------------------------------------------------
+UNWRITABLE = "/proc/nope"
+needs_proc = pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="no /proc")
+
+
+@needs_proc
+@pytest.mark.parametrize("argv, option", [
+    (["run", "free_drift", "--out", UNWRITABLE], "--out"),
+    (["run", "free_drift", "--short", "--out", UNWRITABLE + "/sub"], "--out"),
+    (["check", "free_drift", "--short", "--out", UNWRITABLE], "--out"),
+    (["report", "--short", "--out", UNWRITABLE + "/report.html"], "--out"),
+    (["report", "--render-only", "--out", UNWRITABLE + "/report.html"], "--out"),
+    (["bench", "--cases", "free_drift", "--out", UNWRITABLE + "/bench.json"], "--out"),
+    (["bless", "free_drift", "--reason", "r", "--goldens", UNWRITABLE], "--goldens"),
+], ids=["run", "run_sub", "check", "report", "report_render_only", "bench", "bless_goldens"])
+def test_an_output_path_that_cannot_be_created_exits_2_before_running(monkeypatch, capsys, argv, option):
+    import rsmcheck.orchestration.bench as bench
+    import rsmcheck.orchestration.compare as compare_mod
+    import rsmcheck.orchestration.gate as gate_mod
+    from rsmcheck import cli
+
+    def no_run(*a, **k):
+        raise AssertionError("a run started before the output path was checked")
+
+    for module, name in ((cli, "run_case"), (compare_mod, "check_cases"), (bench, "bench_run"),
+                         (bench, "rhs_timings"), (gate_mod, "bless")):
+        monkeypatch.setattr(module, name, no_run)
+    code = main(argv)
+    captured = capsys.readouterr()
+    assert code == 2
+    assert_one_clean_line(captured.err, option, argv[argv.index(option) + 1])
+    assert captured.out == ""
+
+
+@needs_proc
+def test_run_out_in_proc_in_a_real_process():
+    """It was a FileNotFoundError traceback (mkdir) and exit 1."""
+    proc = subprocess.run([sys.executable, "-m", "rsmcheck.cli", "run", "free_drift", "--out", UNWRITABLE],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert_one_clean_line(proc.stderr, "--out", UNWRITABLE)
+    assert proc.stdout == ""
+
+
+def test_checking_an_output_path_leaves_nothing_behind(tmp_path):
+    """The check creates (and removes) a probe: the folder holds what it held."""
+    from rsmcheck.core.store import output_dir, output_file
+
+    (tmp_path / "mine.txt").write_text("x")
+    output_dir(tmp_path / "a" / "b", "--out")
+    output_file(tmp_path / "c" / "report.html", "--out")
+    output_dir(tmp_path, "--out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.txt"]

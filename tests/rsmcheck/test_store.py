@@ -254,6 +254,9 @@ def test_git_commit_of_a_repository(tmp_path):
     assert store.git_commit(tmp_path) == (sha, "no")
     (tmp_path / "a.txt").write_text("2")
     assert store.git_commit(tmp_path) == (sha, "yes")
+    # a folder inside the work tree (a package installed there) is not the work tree
+    (tmp_path / "site").mkdir()
+    assert store.git_commit(tmp_path / "site") == ("unknown", "unknown")
 
 
 def test_package_versions():
