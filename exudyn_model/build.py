@@ -1,5 +1,5 @@
-"""Building the Exudyn model: the mbs with its bodies, links, joints, connectors, the index
-tables the engine reads coordinates by, and the solver settings.
+"""Building the Exudyn model: the mbs with its bodies, links, joints and connectors
+(`build_model`), and the `ExudynModel` that holds it with the numbers of its items.
 
 Model (docs/exudyn.md has the reasons and the numbers):
 
@@ -34,11 +34,12 @@ Model (docs/exudyn.md has the reasons and the numbers):
   (`LoadTorqueVector`), τ_m, thrust (`LoadForceVector`, body fixed), and, with an orbit or
   thrust, the field of docs/physics.md §5 as one generalised force vector on the mass
   coordinates (an `ObjectGenericODE2` without matrices), the propellant mass on the base,
-  and the motion of O (RK4 in the engine, `exudyn_model.field`).
+  and the motion of O (RK4, `exudyn_model.field`).
 
-`BuildMixin` is the part of `exudyn_model.engine.ExudynEngine` that does this (called once,
-from the constructor), with the basic access to the coordinates (`_qv`) and the base's
-present mass.
+`build_model` does this once, when an engine is made; the `ExudynModel` it returns does not
+change during a run (connectors are switched on and off in its mbs, the base's mass is set
+by the stepper: the items and their numbers stay).  `exudyn_model.indices` adds the tables
+of ODE2 indices the engine reads coordinates by.
 """
 
 from __future__ import annotations
@@ -64,13 +65,14 @@ from exudyn.itemInterface import (  # noqa: E402
     ObjectJointRevolute2D, ObjectRigidBody2D)
 
 from exudyn_model import links  # noqa: E402
-from exudyn_model.field import N_GAUSS_FIELD, _ThrustInertia  # noqa: E402
+from exudyn_model.indices import IndexTables, index_tables  # noqa: E402
 from rsmcheck.core.geometry import rot  # noqa: E402
 
 PP, PF = "PP", "PF"
 
 
-def _perp(a) -> np.ndarray:
+def perp(a) -> np.ndarray:
+    """a turned by +90° in the plane: ω × a = ω perp(a) for a rotation rate ω about z."""
     return np.array([-a[1], a[0]])
 
 
@@ -95,298 +97,237 @@ class LinkItems:
     p_tie: int | None = None  # P tied to the beam (active in PF)
     p_park: list[int] = dc_field(default_factory=list)  # P's x, y held at their reference (active in PP)
     p_coords: np.ndarray | None = None  # global ODE2 indices of P's x, y
-    basis: str = PP
 
 
-class BuildMixin:
-    """`ExudynEngine`'s model: `_build` (the items), `_index` (ODE2 index tables and the
-    mesh's matrices), `_init_solver` (settings and the implicit solver)."""
+@dataclass
+class ExudynModel:
+    """The built robot: the Exudyn system and the numbers of its items (what does not change
+    during a run), with the link mesh's matrices and the index tables (`indices.py`)."""
 
-    def _build(self, init) -> None:
-        p = self.params
-        SC = exu.SystemContainer()
-        mbs = SC.AddSystem()
-        self.SC, self.mbs = SC, mbs
-        self.ground = mbs.AddObject(ObjectGround())
-        self.ground_coords = mbs.AddMarker(MarkerObjectODE2Coordinates(objectNumber=self.ground))
-        gnode = mbs.AddNode(NodePointGround())
-        self.ground_coord = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=gnode, coordinate=0))
+    params: object  # rsmcheck.core.params.Params
+    rigid: bool  # links are ObjectRigidBody2D (else ANCF cables)
+    n_elements: int  # ANCF elements per link
+    mesh: links.LinkMesh  # one link's mesh (every link has the same)
+    I0: float  # m L²/3, a link's inertia about its proximal pin [kg·m²]
+    SC: object  # exu.SystemContainer
+    mbs: object  # exu.MainSystem
+    ground_coords: int  # marker: the ground's (empty) coordinate vector
+    ground_coord: int  # marker: one ground coordinate
+    base_node: int
+    base: int
+    target_node: int
+    target: int
+    links: list[LinkItems]  # index 0..5: arm 1 links 1–3, then arm 2
+    frame_ref: np.ndarray  # (6,) each link's frame angle at build [rad]
+    rotor_nodes: list[int]  # θ_m of each joint's rotor (NodeGenericODE2)
+    motor_loads: list[int]  # τ_m (LoadCoordinate on θ_m)
+    grasp_markers: list[int]  # arm k's grasp point on the target (moved at a capture)
+    grasp_joints: list[int]  # arm k's grasp (ObjectJointRevolute2D, switched)
+    bistops: list[int]  # arm k's wrist bistop (switched with the grasp)
+    base_torque_load: int  # τ_B
+    thrust_load: int  # thrust, body fixed
+    carrier: int | None  # the field's generalised forces (ObjectGenericODE2), None without field
+    field_nodes: list[int]  # the carrier's nodes: base, target, each link's mass nodes
+    # the mesh's matrices on one link's coordinates (links.LinkMesh)
+    first: np.ndarray  # ∫ρ r dξ
+    moment: np.ndarray  # ∫ρ ξ r dξ
+    mass_ancf: np.ndarray  # the consistent mass matrix
+    pos_mid: np.ndarray  # r(L/2)
+    pos_tip: np.ndarray  # r(L)
+    index: IndexTables | None = None  # ODE2 index tables, set by `build_model` after Assemble
 
-        def rigid(pose, rate, mass, inertia):
-            n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=list(map(float, pose)),
-                                            initialVelocities=list(map(float, rate))))
-            return n, mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=mass, inertia=inertia))
 
-        self.base_node, self.base = rigid(init.base_pose, init.base_rate, p.base.mass, p.base.inertia_z)
-        self._base_mass = p.base.mass  # what the base and the solver's mass matrix carry (`_set_base_mass`)
-        self.target_node, self.target = rigid(init.target_pose, init.target_rate, p.target.mass, p.target.inertia_z)
+def initial_basis(grasp) -> list[str]:
+    """Each link's basis at the start: PP, except a terminal link whose arm does not hold
+    the target (PF: docs/physics.md §4.4)."""
+    return [PP if (s != 2 or grasp[k]) else PF for k in range(2) for s in range(3)]
 
-        # ---- links, arm by arm from the base outward (rigid kinematics, undeformed) ----
-        self.links: list[LinkItems] = []
-        L = p.link.length
-        rB = np.asarray(init.base_pose[:2], float)
-        vB = np.asarray(init.base_rate[:2], float)
-        self.frame_ref = np.zeros(6)
-        for k in range(2):
-            th, om = float(init.base_pose[2]), float(init.base_rate[2])
-            mount = np.asarray(p.geometry.mount_B(k + 1), float)
-            pin = rB + rot(th) @ mount
-            vel = vB + om * _perp(pin - rB)
-            parent_marker = mbs.AddMarker(MarkerBodyPosition(bodyNumber=self.base, localPosition=[*mount, 0.0]))
-            for s in range(3):
-                i = 3 * k + s
-                th += float(init.joint_angles[i])
-                om += float(init.joint_rates[i])
-                terminal = s == 2
-                basis = PP if (not terminal or init.grasp[k]) else PF
-                item = (self._rigid_link if self.rigid else self._flexible_link)(i, pin, th, vel, om, terminal, basis)
-                mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[parent_marker, item.prox_marker]))
-                self.links.append(item)
-                self.frame_ref[i] = th
-                d = L * np.array([math.cos(th), math.sin(th)])
-                pin = pin + d
-                vel = vel + om * _perp(d)
-                parent_marker = item.dist_marker
 
-        # ---- rotors: linear GenericODE2 over [parent θ, child θ, θ_m] (docs/exudyn.md §1) ----
-        self.rotor_nodes = []
-        self.motor_loads = []
-        mo = p.motor
-        # θ_m: at the joint angles (springs relaxed) unless the start state gives them
-        th_m = init.joint_angles if init.motor_angles is None else init.motor_angles
-        om_m = init.joint_rates if init.motor_rates is None else init.motor_rates
-        for j in range(6):
-            parent = self.base_node if j % 3 == 0 else self.links[j - 1].dist_hub
-            child = self.links[j].prox_hub
-            nr = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[float(init.joint_angles[j])],
-                                             initialCoordinates=[float(th_m[j] - init.joint_angles[j])],
-                                             initialCoordinates_t=[float(om_m[j])],
-                                             numberOfODE2Coordinates=1))
-            v = np.zeros(7)
-            v[2], v[5], v[6] = 1.0, -1.0, 1.0
-            M = np.zeros((7, 7))
-            M[6, 6] = mo.inertia
-            mbs.AddObject(ObjectGenericODE2(nodeNumbers=[parent, child, nr], massMatrix=M,
-                                            stiffnessMatrix=mo.stiffness * np.outer(v, v),
-                                            dampingMatrix=mo.damping * np.outer(v, v)))
-            mr = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=nr, coordinate=0))
-            self.motor_loads.append(mbs.AddLoad(LoadCoordinate(markerNumber=mr, load=0.0)))
-            self.rotor_nodes.append(nr)
+def build_model(p, init, rho_G: np.ndarray, basis: list[str], rigid: bool, n_elements: int,
+                axial_damping: float, field: bool) -> ExudynModel:
+    """The mbs of the robot at the start state `init` (rsmcheck.driver.initial), params `p`,
+    grasp points `rho_G` on the target, link bases `basis`; `field`: with the carrier of the
+    field's generalised forces.  Assembled, its index tables made."""
+    mesh = links.LinkMesh(n_elements, p.link.length, p.link.rho_a)
+    I0 = p.link.mass * p.link.length**2 / 3.0
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddObject(ObjectGround())
+    ground_coords = mbs.AddMarker(MarkerObjectODE2Coordinates(objectNumber=ground))
+    gnode = mbs.AddNode(NodePointGround())
+    ground_coord = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=gnode, coordinate=0))
 
-        # ---- grasps and wrist bistops ----
-        self.grasp_joints, self.grasp_markers, self.bistops = [], [], []
-        w = p.wrist
-        for k in range(2):
-            link = self.links[3 * k + 2]
-            mt = mbs.AddMarker(MarkerBodyPosition(bodyNumber=self.target, localPosition=[*self.rho_G[k], 0.0]))
-            self.grasp_markers.append(mt)
-            self.grasp_joints.append(mbs.AddObject(ObjectJointRevolute2D(
-                markerNumbers=[mt, link.dist_marker], activeConnector=bool(init.grasp[k]))))
-            psi_ref = float(init.target_pose[2]) - self.frame_ref[3 * k + 2]
-            data = mbs.AddNode(NodeGenericData(initialCoordinates=[0.0, 0.0, 0.0], numberOfDataCoordinates=3))
-            m0 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=link.dist_hub, coordinate=2))
-            m1 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=self.target_node, coordinate=2))
-            self.bistops.append(mbs.AddObject(ObjectConnectorCoordinateSpringDamperExt(
-                markerNumbers=[m0, m1], nodeNumber=data, stiffness=0.0, damping=0.0,
-                useLimitStops=True, limitStopsUpper=w.limit - psi_ref, limitStopsLower=-w.limit - psi_ref,
-                limitStopsStiffness=w.stiffness, limitStopsDamping=w.damping,
-                activeConnector=bool(init.grasp[k]))))
+    def rigid_body(pose, rate, mass, inertia):
+        n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=list(map(float, pose)),
+                                        initialVelocities=list(map(float, rate))))
+        return n, mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=mass, inertia=inertia))
 
-        # ---- base actuators ----
-        mb = mbs.AddMarker(MarkerBodyRigid(bodyNumber=self.base, localPosition=[0.0, 0.0, 0.0]))
-        self.base_torque_load = mbs.AddLoad(LoadTorqueVector(markerNumber=mb, loadVector=[0.0, 0.0, 0.0]))
-        self.thrust_load = mbs.AddLoad(LoadForceVector(markerNumber=mb, loadVector=[0.0, 0.0, 0.0], bodyFixed=True))
+    base_node, base = rigid_body(init.base_pose, init.base_rate, p.base.mass, p.base.inertia_z)
+    target_node, target = rigid_body(init.target_pose, init.target_rate, p.target.mass, p.target.inertia_z)
 
-        # ---- field carrier: generalised forces of the tidal/thrust-inertia field ----
-        self.carrier = None
-        if self.field:
-            self.field_nodes = [self.base_node, self.target_node]
-            for item in self.links:
-                self.field_nodes += item.nodes if not item.rigid else [item.frame_node]
-            self.carrier = mbs.AddObject(ObjectGenericODE2(nodeNumbers=self.field_nodes))
-        mbs.Assemble()
-        if self.field:
-            # its pre-step function is registered while there is thrust (`_advance`)
-            self._thrust_inertia = _ThrustInertia(self.carrier, self.base_node, float(init.base_pose[2]))
-        self._pre_step_on = False
-
-    def _rigid_link(self, i, pin, th, vel, om, terminal, basis) -> LinkItems:
-        mbs, p = self.mbs, self.params
-        L = p.link.length
-        e = np.array([math.cos(th), math.sin(th)])
-        com = pin + 0.5 * L * e
-        v = vel + om * _perp(0.5 * L * e)
-        n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*com, th], initialVelocities=[*v, om]))
-        b = mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=p.link.mass, inertia=p.link.inertia_z))
-        return LinkItems(i, True, n, b, n, n,
-                         mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[-0.5 * L, 0.0, 0.0])),
-                         mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[0.5 * L, 0.0, 0.0])),
-                         basis=basis)
-
-    def _flexible_link(self, i, pin, th, vel, om, terminal, basis) -> LinkItems:
-        mbs, p = self.mbs, self.params
-        L, m = p.link.length, p.link.mass
-        nodes, elements = links.add_link(mbs, p.link, self.n_elements, pin, th, vel, om,
-                                         axial_damping=self.axial_damping)
-        # frame body: massless, J_extra, origin at the proximal pin
-        nf = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*pin, th], initialVelocities=[*vel, om]))
-        bf = mbs.AddObject(ObjectRigidBody2D(nodeNumber=nf, mass=0.0, inertia=p.link.inertia_extra))
-        prox = mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[0]))
-        dist = mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[-1]))
-        mf_pos = mbs.AddMarker(MarkerBodyPosition(bodyNumber=bf, localPosition=[0.0, 0.0, 0.0]))
-        mf = mbs.AddMarker(MarkerBodyRigid(bodyNumber=bf, localPosition=[0.0, 0.0, 0.0]))
-        mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[prox, mf_pos]))
-        # PP: distal pin on the frame axis
-        tip = mbs.AddMarker(MarkerBodyRigid(bodyNumber=elements[-1], localPosition=[self.mesh.le, 0.0, 0.0]))
-        pp = mbs.AddObject(ObjectJointPrismatic2D(markerNumbers=[tip, mf], axisMarker0=[1.0, 0.0, 0.0],
-                                                  normalMarker1=[0.0, 1.0, 0.0], constrainRotation=False,
-                                                  activeConnector=basis == PP))
-        item = LinkItems(i, False, nf, bf, links.add_hub(mbs, nodes[0], th), links.add_hub(mbs, nodes[-1], th),
-                         prox, dist, nodes, elements, pp_joint=pp, basis=basis)
-        if terminal:
-            # PF: P = R + (L/I_0) ∫ρ ξ (r − R) dξ on the frame axis
-            e = np.array([math.cos(th), math.sin(th)])
-            pnode = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*(pin + L * e), 0.0],
-                                                initialVelocities=[*(vel + om * _perp(L * e)), 0.0]))
-            holder = mbs.AddObject(ObjectGenericODE2(nodeNumbers=nodes + [pnode]))
-            nq = self.mesh.nq
-            X = np.zeros((2, nq + 3))
-            X[:, :nq] = -L * self.mesh.moment_matrix()
-            X[0, 0] += 0.5 * L * m * L - self.I0
-            X[1, 1] += 0.5 * L * m * L - self.I0
-            X[0, nq] = X[1, nq + 1] = self.I0
-            mh = mbs.AddMarker(MarkerObjectODE2Coordinates(objectNumber=holder))
-            # P is needed only while the link is PF: in PP the connector is off (its Jacobian,
-            # evaluated at every Newton residual, was 3.7 % of an Exudyn run) and P is parked
-            # at its reference position by two coordinate constraints (massless, it must be
-            # held by something); `_switch_basis` swaps them (docs/exudyn.md §1)
-            item.p_tie = mbs.AddObject(ObjectConnectorCoordinateVector(
-                markerNumbers=[self.ground_coords, mh], scalingMarker0=np.zeros((2, 0)), scalingMarker1=X,
-                activeConnector=basis == PF))
-            item.p_park = [mbs.AddObject(CoordinateConstraint(
-                markerNumbers=[self.ground_coord, mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=pnode, coordinate=c))],
-                activeConnector=basis == PP)) for c in (0, 1)]
-            mpr = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=pnode, coordinate=2))
-            mbs.AddObject(CoordinateConstraint(markerNumbers=[self.ground_coord, mpr]))
-            mp = mbs.AddMarker(MarkerNodeRigid(nodeNumber=pnode))
-            item.pf_joint = mbs.AddObject(ObjectJointPrismatic2D(
-                markerNumbers=[mp, mf], axisMarker0=[1.0, 0.0, 0.0], normalMarker1=[0.0, 1.0, 0.0],
-                constrainRotation=False, activeConnector=basis == PF))
-            item.p_node = pnode
-        return item
-
-    def _index(self) -> None:
-        """Global ODE2 indices of the coordinates the engine reads."""
-        mbs = self.mbs
-        idx = mbs.GetNodeODE2Index
-        self.i_base = idx(self.base_node) + np.arange(3)
-        self.i_target = idx(self.target_node) + np.arange(3)
-        self.i_frame = np.array([idx(it.frame_node) + 2 for it in self.links])
-        self.i_hub_prox = np.array([idx(it.prox_hub) + 2 for it in self.links])
-        self.i_hub_dist = np.array([idx(it.dist_hub) + 2 for it in self.links])
-        self.i_rotor = np.array([idx(n) for n in self.rotor_nodes])
-        for it in self.links:
-            if it.rigid:
-                it.coords = idx(it.frame_node) + np.arange(3)
+    # ---- links, arm by arm from the base outward (rigid kinematics, undeformed) ----
+    items: list[LinkItems] = []
+    L = p.link.length
+    rB = np.asarray(init.base_pose[:2], float)
+    vB = np.asarray(init.base_rate[:2], float)
+    frame_ref = np.zeros(6)
+    for k in range(2):
+        th, om = float(init.base_pose[2]), float(init.base_rate[2])
+        mount = np.asarray(p.geometry.mount_B(k + 1), float)
+        pin = rB + rot(th) @ mount
+        vel = vB + om * perp(pin - rB)
+        parent_marker = mbs.AddMarker(MarkerBodyPosition(bodyNumber=base, localPosition=[*mount, 0.0]))
+        for s in range(3):
+            i = 3 * k + s
+            th += float(init.joint_angles[i])
+            om += float(init.joint_rates[i])
+            terminal = s == 2
+            if rigid:
+                item = _rigid_link(mbs, p, i, pin, th, vel, om)
             else:
-                it.coords = np.concatenate([idx(n) + np.arange(4) for n in it.nodes])
-            if it.p_node is not None:
-                it.p_coords = idx(it.p_node) + np.arange(2)
-        # the sensors' pairs (`ObserveMixin._sensors`): each joint's parent hub and parent frame
-        # (the base's θ for the first joint of an arm), each wrist's terminal distal hub, the
-        # end effectors' x, y (the tip nodes of flexible terminal links; rigid: None)
-        i_thB = self.i_base[2]
-        self._i_hub_parent = np.array([i_thB, *self.i_hub_dist[:2], i_thB, *self.i_hub_dist[3:5]])
-        self._i_frame_parent = np.array([i_thB, *self.i_frame[:2], i_thB, *self.i_frame[3:5]])
-        self._i_wrist_hub = self.i_hub_dist[[2, 5]]
-        self._i_ee = None if self.rigid else np.array([self.links[2].coords[-4:-2], self.links[5].coords[-4:-2]])
-        # all of them in one gather per sample (`_sensors`): `_sensor_rows`, and where each
-        # group lies in it (`_sensor_at`, name → slice)
-        groups = {"base": self.i_base, "target": self.i_target, "rotor": self.i_rotor,
-                  "hub_prox": self.i_hub_prox, "hub_parent": self._i_hub_parent, "frame": self.i_frame,
-                  "frame_parent": self._i_frame_parent, "wrist_hub": self._i_wrist_hub}
-        if not self.rigid:
-            groups["ee"] = self._i_ee.reshape(-1)
-        ends = np.cumsum([len(g) for g in groups.values()])
-        self._sensor_at = {name: slice(int(e) - len(g), int(e)) for (name, g), e in zip(groups.items(), ends)}
-        self._sensor_rows = np.concatenate(list(groups.values())).astype(np.int64)
-        self.q_ref = np.asarray(mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Reference))
-        L = self.params.link.length
-        self.first = self.mesh.first_matrix()
-        self.moment = self.mesh.moment_matrix()
-        self.mass_ancf = self.mesh.mass_matrix()
-        self.pos_mid = self.mesh.pos_matrix(0.5 * L)
-        self._rigid_gauss = links.gauss(8, -0.5 * L, 0.5 * L)  # a rigid link's field points
-        # the tidal field's quadrature on the flexible links (field.tidal_carrier_forces)
-        self._flex = [i for i, it in enumerate(self.links) if not it.rigid]
-        self._flex_coords = np.array([self.links[i].coords for i in self._flex], dtype=np.int64).reshape(
-            len(self._flex), self.mesh.nq)
-        _, ws_flex, D = self.mesh.sample(N_GAUSS_FIELD)  # rows x_g, y_g of every Gauss point
-        self._field_weights = self.params.link.rho_a * ws_flex  # ρA w_g [kg]
-        # D by its non-zero entries per row (a point of an element: 4 of the link's coordinates)
-        width = int(np.max(np.count_nonzero(D, axis=1)))
-        cols = np.argsort(D == 0.0, axis=1, kind="stable")[:, :width]
-        self._field_S = (np.ascontiguousarray(cols), np.ascontiguousarray(np.take_along_axis(D, cols, axis=1)))
-        self._field_points = np.array([self.i_base[:2], self.i_target[:2]], dtype=np.int64)
-        # places in the carrier's vector (base, target, then the links: `field_nodes`'s order)
-        # of the base's and target's x, y, of each link's coordinates, of the flexible ones
-        ends = 6 + np.cumsum([3 if it.rigid else len(it.coords) for it in self.links])
-        self._n_carrier = int(ends[-1])
-        self._carrier_points = np.array([[0, 1], [3, 4]], dtype=np.int64)
-        self._carrier_links = [slice(int(e) - (3 if it.rigid else len(it.coords)), int(e))
-                               for it, e in zip(self.links, ends)]
-        self._carrier_flex = np.array([np.arange(self._n_carrier)[self._carrier_links[i]] for i in self._flex],
-                                      dtype=np.int64).reshape(len(self._flex), self.mesh.nq)
-        self._uniform: tuple[float, np.ndarray] | None = None  # (base mass, U) of the last build
-        # ∫ρ r dξ of every link as one matrix on the stacked link coordinates
-        self._link_coords = np.concatenate([it.coords for it in self.links])
-        blocks = [np.hstack([self.params.link.mass * np.eye(2), np.zeros((2, 1))]) if it.rigid else self.first
-                  for it in self.links]
-        self._link_first = np.hstack(blocks)
-        self.pos_tip = self.mesh.pos_matrix(L)
+                item = _flexible_link(mbs, p, mesh, I0, (ground_coords, ground_coord), n_elements, axial_damping,
+                                      i, pin, th, vel, om, terminal, basis[i])
+            mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[parent_marker, item.prox_marker]))
+            items.append(item)
+            frame_ref[i] = th
+            d = L * np.array([math.cos(th), math.sin(th)])
+            pin = pin + d
+            vel = vel + om * perp(d)
+            parent_marker = item.dist_marker
 
-    def _settings(self) -> exu.SimulationSettings:
-        s = exu.SimulationSettings()
-        ti = s.timeIntegration
-        ti.endTime = self.dt
-        ti.numberOfSteps = self.substeps
-        ti.generalizedAlpha.spectralRadius = self.spectral_radius
-        ti.generalizedAlpha.computeInitialAccelerations = True
-        if self.constraints == "index2":
-            # Newmark (trapezoidal: β = 1/4, γ = 1/2, no numerical damping) with velocity-level
-            # constraints: the multipliers scale as 1/h instead of 1/h² (docs/exudyn.md §6)
-            ti.generalizedAlpha.useNewmark = True
-            ti.generalizedAlpha.useIndex2Constraints = True
-        ti.newton.relativeTolerance = self.newton_rtol
-        ti.newton.absoluteTolerance = self.newton_atol
-        ti.newton.useModifiedNewton = True
-        ti.newton.modifiedNewtonJacUpdatePerStep = self.jacobian_per_step
-        ti.adaptiveStep = True
-        ti.verboseMode = 0
-        # the mass matrix is computed once, not at every Newton residual (~6 % of the solver's
-        # time); the one mass that changes, the base's under thrust, is set by `_set_base_mass`,
-        # which recomputes it (docs/exudyn.md §4)
-        ti.reuseConstantMassMatrix = True
-        s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
-        s.solution.file.write = False
-        s.solution.sensors.active = False
-        s.solution.file.writeInitialValues = False
-        return s
+    # ---- rotors: linear GenericODE2 over [parent θ, child θ, θ_m] (docs/exudyn.md §1) ----
+    rotor_nodes = []
+    motor_loads = []
+    mo = p.motor
+    # θ_m: at the joint angles (springs relaxed) unless the start state gives them
+    th_m = init.joint_angles if init.motor_angles is None else init.motor_angles
+    om_m = init.joint_rates if init.motor_rates is None else init.motor_rates
+    for j in range(6):
+        parent = base_node if j % 3 == 0 else items[j - 1].dist_hub
+        child = items[j].prox_hub
+        nr = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[float(init.joint_angles[j])],
+                                         initialCoordinates=[float(th_m[j] - init.joint_angles[j])],
+                                         initialCoordinates_t=[float(om_m[j])],
+                                         numberOfODE2Coordinates=1))
+        v = np.zeros(7)
+        v[2], v[5], v[6] = 1.0, -1.0, 1.0
+        M = np.zeros((7, 7))
+        M[6, 6] = mo.inertia
+        mbs.AddObject(ObjectGenericODE2(nodeNumbers=[parent, child, nr], massMatrix=M,
+                                        stiffnessMatrix=mo.stiffness * np.outer(v, v),
+                                        dampingMatrix=mo.damping * np.outer(v, v)))
+        mr = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=nr, coordinate=0))
+        motor_loads.append(mbs.AddLoad(LoadCoordinate(markerNumber=mr, load=0.0)))
+        rotor_nodes.append(nr)
 
-    def _init_solver(self) -> None:
-        self.settings = self._settings()
-        self.solver = exu.MainSolverImplicitSecondOrder()
-        self.solver.InitializeSolver(self.mbs, self.settings)
+    # ---- grasps and wrist bistops ----
+    grasp_joints, grasp_markers, bistops = [], [], []
+    w = p.wrist
+    for k in range(2):
+        link = items[3 * k + 2]
+        mt = mbs.AddMarker(MarkerBodyPosition(bodyNumber=target, localPosition=[*rho_G[k], 0.0]))
+        grasp_markers.append(mt)
+        grasp_joints.append(mbs.AddObject(ObjectJointRevolute2D(
+            markerNumbers=[mt, link.dist_marker], activeConnector=bool(init.grasp[k]))))
+        psi_ref = float(init.target_pose[2]) - frame_ref[3 * k + 2]
+        data = mbs.AddNode(NodeGenericData(initialCoordinates=[0.0, 0.0, 0.0], numberOfDataCoordinates=3))
+        m0 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=link.dist_hub, coordinate=2))
+        m1 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=target_node, coordinate=2))
+        bistops.append(mbs.AddObject(ObjectConnectorCoordinateSpringDamperExt(
+            markerNumbers=[m0, m1], nodeNumber=data, stiffness=0.0, damping=0.0,
+            useLimitStops=True, limitStopsUpper=w.limit - psi_ref, limitStopsLower=-w.limit - psi_ref,
+            limitStopsStiffness=w.stiffness, limitStopsDamping=w.damping,
+            activeConnector=bool(init.grasp[k]))))
 
-    def _qv(self) -> tuple[np.ndarray, np.ndarray]:
-        """Absolute ODE2 coordinates q and velocities q̇ (read-only: between the end of an
-        `_advance` and the next change of the state, `_pause` or `_advance`, the same arrays
-        of that sample are returned: the sensors, the observables and the next held inputs
-        read them without three copies out of Exudyn)."""
-        if self._qv_sample is not None:
-            return self._qv_sample
-        sd = self.mbs.systemData
-        return np.asarray(sd.GetODE2Coordinates()) + self.q_ref, np.asarray(sd.GetODE2Coordinates_t())
+    # ---- base actuators ----
+    mb = mbs.AddMarker(MarkerBodyRigid(bodyNumber=base, localPosition=[0.0, 0.0, 0.0]))
+    base_torque_load = mbs.AddLoad(LoadTorqueVector(markerNumber=mb, loadVector=[0.0, 0.0, 0.0]))
+    thrust_load = mbs.AddLoad(LoadForceVector(markerNumber=mb, loadVector=[0.0, 0.0, 0.0], bodyFixed=True))
 
-    def _mass_base(self) -> float:
-        return self.params.base.mass - self.m_used
+    # ---- field carrier: generalised forces of the tidal/thrust-inertia field ----
+    carrier = None
+    field_nodes: list[int] = []
+    if field:
+        field_nodes = [base_node, target_node]
+        for item in items:
+            field_nodes += item.nodes if not item.rigid else [item.frame_node]
+        carrier = mbs.AddObject(ObjectGenericODE2(nodeNumbers=field_nodes))
+    mbs.Assemble()
+    model = ExudynModel(
+        params=p, rigid=rigid, n_elements=n_elements, mesh=mesh, I0=I0, SC=SC, mbs=mbs,
+        ground_coords=ground_coords, ground_coord=ground_coord, base_node=base_node, base=base,
+        target_node=target_node, target=target, links=items, frame_ref=frame_ref, rotor_nodes=rotor_nodes,
+        motor_loads=motor_loads, grasp_markers=grasp_markers, grasp_joints=grasp_joints, bistops=bistops,
+        base_torque_load=base_torque_load, thrust_load=thrust_load, carrier=carrier, field_nodes=field_nodes,
+        first=mesh.first_matrix(), moment=mesh.moment_matrix(), mass_ancf=mesh.mass_matrix(),
+        pos_mid=mesh.pos_matrix(0.5 * L), pos_tip=mesh.pos_matrix(L))
+    model.index = index_tables(model)
+    return model
+
+
+def _rigid_link(mbs, p, i, pin, th, vel, om) -> LinkItems:
+    L = p.link.length
+    e = np.array([math.cos(th), math.sin(th)])
+    com = pin + 0.5 * L * e
+    v = vel + om * perp(0.5 * L * e)
+    n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*com, th], initialVelocities=[*v, om]))
+    b = mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=p.link.mass, inertia=p.link.inertia_z))
+    return LinkItems(i, True, n, b, n, n,
+                     mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[-0.5 * L, 0.0, 0.0])),
+                     mbs.AddMarker(MarkerBodyPosition(bodyNumber=b, localPosition=[0.5 * L, 0.0, 0.0])))
+
+
+def _flexible_link(mbs, p, mesh, I0, ground, n_elements, axial_damping, i, pin, th, vel, om, terminal,
+                   basis) -> LinkItems:
+    """ANCF link i with its frame body, hubs and PP joint; a terminal link also with the
+    point P of its PF axis.  `ground`: the ground's coordinate-vector and coordinate markers."""
+    ground_coords, ground_coord = ground
+    L, m = p.link.length, p.link.mass
+    nodes, elements = links.add_link(mbs, p.link, n_elements, pin, th, vel, om,
+                                     axial_damping=axial_damping)
+    # frame body: massless, J_extra, origin at the proximal pin
+    nf = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*pin, th], initialVelocities=[*vel, om]))
+    bf = mbs.AddObject(ObjectRigidBody2D(nodeNumber=nf, mass=0.0, inertia=p.link.inertia_extra))
+    prox = mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[0]))
+    dist = mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[-1]))
+    mf_pos = mbs.AddMarker(MarkerBodyPosition(bodyNumber=bf, localPosition=[0.0, 0.0, 0.0]))
+    mf = mbs.AddMarker(MarkerBodyRigid(bodyNumber=bf, localPosition=[0.0, 0.0, 0.0]))
+    mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[prox, mf_pos]))
+    # PP: distal pin on the frame axis
+    tip = mbs.AddMarker(MarkerBodyRigid(bodyNumber=elements[-1], localPosition=[mesh.le, 0.0, 0.0]))
+    pp = mbs.AddObject(ObjectJointPrismatic2D(markerNumbers=[tip, mf], axisMarker0=[1.0, 0.0, 0.0],
+                                              normalMarker1=[0.0, 1.0, 0.0], constrainRotation=False,
+                                              activeConnector=basis == PP))
+    item = LinkItems(i, False, nf, bf, links.add_hub(mbs, nodes[0], th), links.add_hub(mbs, nodes[-1], th),
+                     prox, dist, nodes, elements, pp_joint=pp)
+    if terminal:
+        # PF: P = R + (L/I_0) ∫ρ ξ (r − R) dξ on the frame axis
+        e = np.array([math.cos(th), math.sin(th)])
+        pnode = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[*(pin + L * e), 0.0],
+                                            initialVelocities=[*(vel + om * perp(L * e)), 0.0]))
+        holder = mbs.AddObject(ObjectGenericODE2(nodeNumbers=nodes + [pnode]))
+        nq = mesh.nq
+        X = np.zeros((2, nq + 3))
+        X[:, :nq] = -L * mesh.moment_matrix()
+        X[0, 0] += 0.5 * L * m * L - I0
+        X[1, 1] += 0.5 * L * m * L - I0
+        X[0, nq] = X[1, nq + 1] = I0
+        mh = mbs.AddMarker(MarkerObjectODE2Coordinates(objectNumber=holder))
+        # P is needed only while the link is PF: in PP the connector is off (its Jacobian,
+        # evaluated at every Newton residual, was 3.7 % of an Exudyn run) and P is parked
+        # at its reference position by two coordinate constraints (massless, it must be
+        # held by something); `switching.switch_basis` swaps them (docs/exudyn.md §1)
+        item.p_tie = mbs.AddObject(ObjectConnectorCoordinateVector(
+            markerNumbers=[ground_coords, mh], scalingMarker0=np.zeros((2, 0)), scalingMarker1=X,
+            activeConnector=basis == PF))
+        item.p_park = [mbs.AddObject(CoordinateConstraint(
+            markerNumbers=[ground_coord, mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=pnode, coordinate=c))],
+            activeConnector=basis == PP)) for c in (0, 1)]
+        mpr = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=pnode, coordinate=2))
+        mbs.AddObject(CoordinateConstraint(markerNumbers=[ground_coord, mpr]))
+        mp = mbs.AddMarker(MarkerNodeRigid(nodeNumber=pnode))
+        item.pf_joint = mbs.AddObject(ObjectJointPrismatic2D(
+            markerNumbers=[mp, mf], axisMarker0=[1.0, 0.0, 0.0], normalMarker1=[0.0, 1.0, 0.0],
+            constrainRotation=False, activeConnector=basis == PF))
+        item.p_node = pnode
+    return item

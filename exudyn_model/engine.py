@@ -1,21 +1,33 @@
 """The paper's robot from Exudyn's general items, as an `rsmcheck.core.engine.Engine`: a facade
-over the modules that do the work, each named by its job as in `reference_model/` (so the
-two engines read side by side):
+over parts that each own their data, named by their job as in `reference_model/` (so the
+two engines read side by side).  As in Pinocchio, what does not change during a run (the
+model) is kept apart from what does (the state), and the algorithms are functions or
+objects that are handed both:
 
-    build.py      the mbs: base, target, links (`links.py`), hubs, joints, rotors, grasps,
-                  bistops, actuators, the field carrier; index tables; solver settings
-    stepping.py   advance: the solver's greenlet (`_Worker`), restarts, retries, inputs
-    field.py      the tidal field and the thrust inertia as generalised forces, the orbit of O
-    switching.py  capture, release, basis switch, plastic impact
-    observe.py    sensors, observables, energy, momentum
-    reactions.py  grasp forces by an index-1 solve with Exudyn's own M, G, f
-    modes.py      linearisation: the linear plant, coupled frequencies
+    options.py     EngineOptions: the resolved options (fixed for a run)
+    build.py       ExudynModel: the mbs (base, target, links, hubs, joints, rotors, grasps,
+                   bistops, actuators, the field carrier), the numbers of its items, the link
+                   mesh's matrices; `build_model` makes it (`links.py`: one link's elements)
+    indices.py     IndexTables: the global ODE2 indices the engine reads (model.index)
+    state.py       EngineState: time, grasps and grasp points, the links' bases, the orbit
+                   of O, the propellant used, the held inputs, the sample's coordinates,
+                   the solver's counters
+    stepper.py     Stepper: the implicit solver and its settings, advance, restarts,
+                   retries, setting the held inputs into the mbs
+    worker.py      Worker: the continuous run across control periods (a greenlet)
+    field.py       FieldForces: the tidal field and the thrust inertia as generalised
+                   forces, the orbit of O
+    switching.py   capture, release, basis switch, plastic impact (functions)
+    observe.py     Observer: sensors, observables, energy, momentum
+    reactions.py   ConstraintForces: grasp forces by an index-1 solve with Exudyn's own M, G, f
+    exact_state.py export and import of the exact state for phase chaining
+    modes.py       linearisation: the linear plant, coupled frequencies
+    stepping.py    rhs_timing, the cost of one right-hand side
 
-`ExudynEngine` is composed of one mixin per module (`BuildMixin`, `SteppingMixin`,
-`FieldMixin`, `SwitchingMixin`, `ObserveMixin`); it holds the options and the state between
-control samples (the mbs, time t, grasps, held points, the orbit of O, the propellant
-used), answers the Engine protocol and exports/imports the exact state for chaining.
-The model and its reasons: `build.py` and docs/exudyn.md.
+`ExudynEngine` resolves the options, makes the parts (the model, the state, the field
+forces, the stepper, the constraint forces, the observer; each receives the others it
+needs) and answers the Engine protocol by delegating to them.  The model and its reasons:
+`build.py` and docs/exudyn.md.
 """
 
 from __future__ import annotations
@@ -24,12 +36,14 @@ import math
 
 import numpy as np
 
-from exudyn_model import links
-from exudyn_model.build import PP, BuildMixin
-from exudyn_model.field import FieldMixin
-from exudyn_model.observe import ObserveMixin
-from exudyn_model.stepping import SteppingMixin, _Worker
-from exudyn_model.switching import SwitchingMixin
+from exudyn_model import exact_state, links, switching
+from exudyn_model.build import build_model, initial_basis
+from exudyn_model.field import FieldForces
+from exudyn_model.observe import Observer
+from exudyn_model.options import EngineOptions
+from exudyn_model.reactions import ConstraintForces
+from exudyn_model.state import EngineState, coordinates
+from exudyn_model.stepper import Stepper
 from rsmcheck.core.cases import Case, first_given
 from rsmcheck.core.engine import Inputs, Sensors
 from rsmcheck.core.plugins import settings_of
@@ -61,8 +75,14 @@ NEWTON_ATOL_RIGID = 1e-10
 RESTART_THRESHOLD_DEFAULT = 0.01
 
 
-class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, ObserveMixin):
+class ExudynEngine:
     """The system of docs/physics.md built from Exudyn items, stepping through a case.
+
+    Parts (attributes): `options` (EngineOptions), `model` (build.ExudynModel, with
+    `model.index`), `state` (state.EngineState), `field_forces` (field.FieldForces, None
+    without the field machinery), `stepper` (stepper.Stepper), `constraint_forces`
+    (reactions.ConstraintForces), `observer` (observe.Observer).  The resolved options are
+    also attributes of their own (`substeps`, `newton_atol`, ...).
 
     Options:
       rigid           rigid links (the rigid-equivalence check against the reference with 0 modes)
@@ -146,64 +166,78 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
         self.constraints = constraints
         self.axial_damping = float(axial_damping)
         self.dt = case.solver.control_period
-        self.mesh = links.LinkMesh(self.n_elements, p.link.length, p.link.rho_a)
-        self.I0 = p.link.mass * p.link.length**2 / 3.0
+        # ---- the parts -------------------------------------------------------------------
+        self.options = EngineOptions(
+            rigid=self.rigid, n_elements=self.n_elements, substeps=self.substeps, quiet_substeps=self.quiet_substeps,
+            spectral_radius=self.spectral_radius, newton_rtol=self.newton_rtol, newton_atol=self.newton_atol,
+            jacobian_per_step=self.jacobian_per_step, jacobian_period=self.jacobian_period, orbit=self.orbit,
+            field=self.field, restart_on_input_change=self.restart_on_input_change,
+            restart_threshold=self.restart_threshold, stepping=self.stepping, constraints=self.constraints,
+            axial_damping=self.axial_damping, dt=self.dt)
         init = build_initial(case, p, start)
-        self.grasp_on = np.array(init.grasp, dtype=np.int64)
-        self.rho_G = np.array(init.rho_G, float)
-        self.r_O = np.array(init.orbit_r, float)
-        self.v_O = np.array(init.orbit_v, float)
-        self.m_used = float(init.m_used)
-        self.t = 0.0
-        self.capture_arm = case.capture.arm
-        self.capture_point = np.asarray(p.geometry.grasp_T(case.capture.arm), float)
-        self._held: tuple | None = None
-        self._qv_sample: tuple[np.ndarray, np.ndarray] | None = None  # `_qv`
-        self.stats = {"steps": 0, "newton_iterations": 0, "jacobians": 0, "restarts": 0, "newton_retries": 0,
-                      "wall_integrator_s": 0.0}  # s waiting on Exudyn's solver (rsmcheck bench)
-        self._restart_pending = False
-        self._h_now: float | None = None  # the generalized-α step of the last interval [s]
-        self.start_label = "initial" if start is None else "rigid end state"
+        self.state = EngineState(
+            t=0.0, grasp_on=np.array(init.grasp, dtype=np.int64), rho_G=np.array(init.rho_G, float),
+            basis=initial_basis(init.grasp), r_O=np.array(init.orbit_r, float), v_O=np.array(init.orbit_v, float),
+            m_used=float(init.m_used), start_label="initial" if start is None else "rigid end state")
         self._base_start = (np.asarray(init.base_pose, float), np.asarray(init.base_rate, float))
-        self._build(init)
-        self._index()
-        self._init_solver()
-        # a run left suspended when the engine is dropped is ended by the next run started on
-        # this thread (`_Worker`: never from a finalizer, which may run inside a pybind11 call)
-        self._worker = _Worker(self) if stepping == "continuous" else None
+        self.model = build_model(p, init, self.state.rho_G, self.state.basis, self.rigid, self.n_elements,
+                                 self.axial_damping, self.field)
+        self.field_forces = FieldForces(self.model, self.orbit, float(init.base_pose[2])) if self.field else None
+        self.stepper = Stepper(self.model, self.options, self.state, self.field_forces,
+                               is_quiet=case.solver.is_quiet, name=self.name)
+        self.constraint_forces = ConstraintForces(self.model.mbs)
+        self.observer = Observer(self.model, self.state, self.stepper, self.constraint_forces, self.orbit,
+                                 capture_arm=case.capture.arm,
+                                 capture_point=np.asarray(p.geometry.grasp_T(case.capture.arm), float))
+
+    # ---- the parts' data the orchestration and the tests read ----------------------------
+    @property
+    def mbs(self):
+        """The Exudyn system (`model.mbs`)."""
+        return self.model.mbs
+
+    @property
+    def stats(self) -> dict:
+        """The solver's counters (`state.stats`)."""
+        return self.state.stats
+
+    def coordinates(self) -> tuple[np.ndarray, np.ndarray]:
+        """Absolute ODE2 coordinates q and velocities q̇ (read-only; `state.coordinates`)."""
+        return coordinates(self.model, self.state)
 
     # ---- Engine protocol (rsmcheck.core.engine.Engine) ------------------------------------
     def time(self) -> float:
-        return self.t
+        return self.state.t
 
     def advance(self, t_next: float, inputs: Inputs) -> None:
-        self._advance(t_next, inputs)  # stepping.py
+        self.stepper.advance(t_next, inputs)
 
     def sensors(self) -> Sensors:
-        return self._sensors()  # observe.py
+        return self.observer.sensors()
 
     def observe(self, inputs: Inputs) -> dict:
-        return self._observables(inputs)  # observe.py
+        return self.observer.observables(inputs)
 
     def capture(self, arm: int) -> dict[str, float]:
-        return self._capture(arm)  # switching.py
+        return switching.capture(self.model, self.state, self.stepper, self.constraint_forces, arm)
 
     def release(self, arm: int) -> dict[str, float]:
-        return self._release(arm)  # switching.py
+        return switching.release(self.model, self.state, self.stepper, self.constraint_forces, arm)
 
     def solver_settings(self) -> dict:
+        stats = self.state.stats
         return {"integrator": "Exudyn generalized-alpha, index 3, fixed step",
                 "step": self.dt / self.substeps, "substeps": self.substeps,
                 "spectral_radius": self.spectral_radius, "newton_rtol": self.newton_rtol, "newton_atol": self.newton_atol,
                 "jacobian_per_step": self.jacobian_per_step, "control_period": self.dt,
                 "links": "rigid bodies" if self.rigid else f"ANCFCable2D x {self.n_elements}",
-                "steps": self.stats["steps"], "newton_iterations": self.stats["newton_iterations"],
-                "jacobians": self.stats["jacobians"], "restarts": self.stats["restarts"],
-                "newton_retries": self.stats["newton_retries"],
-                "wall_integrator_s": self.stats["wall_integrator_s"],
+                "steps": stats["steps"], "newton_iterations": stats["newton_iterations"],
+                "jacobians": stats["jacobians"], "restarts": stats["restarts"],
+                "newton_retries": stats["newton_retries"],
+                "wall_integrator_s": stats["wall_integrator_s"],
                 "stepping": self.stepping, "constraints": self.constraints,
                 "axial_damping": self.axial_damping,
-                "restart_threshold": self.restart_threshold, "start": self.start_label,
+                "restart_threshold": self.restart_threshold, "start": self.state.start_label,
                 **({} if self.quiet_substeps is None else {"quiet_substeps": self.quiet_substeps}),
                 **({} if self.jacobian_period is None else {"jacobian_period": self.jacobian_period})}
 
@@ -212,54 +246,10 @@ class ExudynEngine(BuildMixin, SteppingMixin, FieldMixin, SwitchingMixin, Observ
 
     # ---- exact state for phase chaining (rsmcheck.orchestration.chain) -------------------------------
     def export_state(self) -> dict:
-        """Everything needed to continue this run in a new engine of the same model: absolute
-        ODE2 coordinates and velocities (with the link deformation), the bistop data
-        coordinates, grasp flags, held points, terminal-link bases."""
-        q, v = self._qv()
-        return {"engine": self.name, "rigid": self.rigid, "n_elements": self.n_elements,
-                "q": q.copy(), "v": v.copy(), "data": np.asarray(self.mbs.systemData.GetDataCoordinates(), float),
-                "grasp_on": self.grasp_on.copy(), "rho_G": self.rho_G.copy(),
-                "basis": [it.basis for it in self.links], "base_pose": q[self.i_base].copy(),
-                "base_rate": v[self.i_base].copy()}
+        """The exact state (`exact_state.export_state`)."""
+        return exact_state.export_state(self.name, self.model, self.state)
 
     def import_state(self, exact: dict) -> None:
-        """Continue from `export_state()` of an engine of the same model (same links, element
-        count, grasps and bases: the model is built from the rigid part of the same end
-        state).  A shift of O between the phases (placing O on the orbit at the system COM,
-        rsmcheck.orchestration.chain) moves every position coordinate by the base's shift.  An exact state
-        of another model size is not used: the run starts from the rigid end state."""
-        q_new, v_new = self._qv()
-        same = (exact.get("engine") == self.name and bool(exact.get("rigid")) == self.rigid
-                and int(exact.get("n_elements", -1)) == self.n_elements
-                and len(exact.get("q", ())) == len(q_new)
-                and list(exact.get("grasp_on", ())) == list(self.grasp_on)
-                and list(exact.get("basis", ())) == [it.basis for it in self.links])
-        if not same:
-            return
-        shift = self._base_start[0][:2] - np.asarray(exact["base_pose"], float)[:2]
-        shift_v = self._base_start[1][:2] - np.asarray(exact["base_rate"], float)[:2]
-        q = np.asarray(exact["q"], float)
-        v = np.asarray(exact["v"], float)
-        for i in self._position_coordinates():
-            q[i] += shift
-            v[i] += shift_v
-        for it in self.links:  # a PP link's P stays parked at this model's reference (build.py)
-            if it.p_node is not None and it.basis == PP:
-                q[it.p_coords], v[it.p_coords] = self.q_ref[it.p_coords], 0.0
-        sd = self.mbs.systemData
-        sd.SetODE2Coordinates(q - self.q_ref)
-        sd.SetODE2Coordinates_t(v)
-        sd.SetDataCoordinates(np.asarray(exact["data"], float))
-        self.rho_G = np.asarray(exact["rho_G"], float).copy()
-        for k in range(2):
-            self.mbs.SetMarkerParameter(self.grasp_markers[k], "localPosition", [*self.rho_G[k], 0.0])
-        self.start_label = "exact end state"
-        self._restart()
-
-    def _position_coordinates(self) -> list[np.ndarray]:
-        """Global ODE2 indices (x, y) of every node position (rigid-body and ANCF nodes)."""
-        out = []
-        for n in range(self.mbs.systemData.NumberOfNodes()):
-            if self.mbs.GetNode(n)["nodeType"] in ("RigidBody2D", "Point2DSlope1"):
-                out.append(self.mbs.GetNodeODE2Index(n) + np.arange(2))
-        return out
+        """Continue from `export_state()` of an engine of the same model
+        (`exact_state.import_state`; another model size: from the rigid end state)."""
+        exact_state.import_state(self.name, self.model, self.state, self.stepper, exact, self._base_start)

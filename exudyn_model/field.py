@@ -13,14 +13,16 @@ potential energy per unit mass, −∇_ρ U = Δg (r_O fixed), is
 to second order −μ ρᵀ(3 r̂r̂ᵀ − I)ρ/(2|r_O|³) (negative along the radial: it stretches).
 
 The machinery that applies it (docs/physics.md §5, docs/exudyn.md §1): one
-`ObjectGenericODE2` without matrices, the *carrier*, over every mass coordinate (base,
-target, the links' nodes) receives the field's generalised forces: the tidal part at the
-positions of the middle of each control period (extrapolated from its start), held over
-the period (`_tidal_forces`, `SteppingMixin._set_inputs`), and
-the uniform thrust inertia (`_uniform_field_matrix`), set at every time step by
-`_ThrustInertia`; the co-moving point O follows its orbit with the period's mean thrust
-acceleration (`_advance_orbit`).  `FieldMixin` is that part of
-`exudyn_model.engine.ExudynEngine`.
+`ObjectGenericODE2` without matrices, the *carrier* (`build.py`), over every mass
+coordinate (base, target, the links' nodes) receives the field's generalised forces: the
+tidal part at the positions of the middle of each control period (extrapolated from its
+start), held over the period (`FieldForces.tidal_forces`, set by
+`stepper.Stepper.set_inputs`), and the uniform thrust inertia
+(`FieldForces.uniform_field_matrix`), set at every time step by `_ThrustInertia`; the
+co-moving point O follows its orbit with the period's mean thrust acceleration
+(`FieldForces.advance_orbit`).  `FieldForces` is the engine's field part: its quadrature
+and the places in the carrier's vector are fixed at build, its thrust inertia and the
+cached uniform-field matrix change with the thrust and the propellant.
 """
 
 from __future__ import annotations
@@ -37,6 +39,8 @@ sys.exudynFast = True  # the engine's build: import order must not matter
 # exudyn announces the fast build on stdout: keep it out of `--json` output
 with contextlib.redirect_stdout(io.StringIO()):
     import exudyn as exu  # noqa: E402
+
+from exudyn_model import links  # noqa: E402
 
 N_GAUSS_FIELD = 4  # Gauss points per element for the tidal field, energy and momentum
 
@@ -137,74 +141,111 @@ def tidal_potential(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
     return mu * (h + 0.5 * rho2 / r2) / np.sqrt(r2)
 
 
-class FieldMixin:
-    """`ExudynEngine`'s field and thrust machinery (built by `BuildMixin._build` when the
-    engine has `field`)."""
+class FieldForces:
+    """The field and thrust part of an engine built with the field machinery: the tidal
+    forces' quadrature on the links and the places of every part in the carrier's vector
+    (fixed at build), the uniform-field matrix of the last base mass, the thrust inertia
+    (`_ThrustInertia`, the solver's pre-step function while there is thrust)."""
 
-    def _advance_orbit(self, h: float, a_thr: np.ndarray) -> None:
-        """O over one control interval: r̈_O = g(r_O) + a_thr (physics.md §5), classical RK4
-        (`orbit_rk4`; a_thr, the interval's mean thrust acceleration, held)."""
+    def __init__(self, model, orbit: bool, theta_ref: float):
+        """`model`: the built `ExudynModel` (with its carrier); `orbit`: the case has one
+        (else no tidal field: zero); `theta_ref`: the base's θ at build (the reference of
+        its node's rotation coordinate)."""
+        p = model.params
+        self.params = p
+        self.model = model
+        self.orbit = bool(orbit)
+        L = p.link.length
+        self.rigid_gauss = links.gauss(8, -0.5 * L, 0.5 * L)  # a rigid link's field points
+        # the tidal field's quadrature on the flexible links (tidal_carrier_forces)
+        self.flex = [i for i, it in enumerate(model.links) if not it.rigid]
+        self.flex_coords = np.array([model.links[i].coords for i in self.flex], dtype=np.int64).reshape(
+            len(self.flex), model.mesh.nq)
+        _, ws_flex, D = model.mesh.sample(N_GAUSS_FIELD)  # rows x_g, y_g of every Gauss point
+        self.weights = p.link.rho_a * ws_flex  # ρA w_g [kg]
+        # D by its non-zero entries per row (a point of an element: 4 of the link's coordinates)
+        width = int(np.max(np.count_nonzero(D, axis=1)))
+        cols = np.argsort(D == 0.0, axis=1, kind="stable")[:, :width]
+        self.S = (np.ascontiguousarray(cols), np.ascontiguousarray(np.take_along_axis(D, cols, axis=1)))
+        ix = model.index
+        self.points = np.array([ix.i_base[:2], ix.i_target[:2]], dtype=np.int64)
+        # places in the carrier's vector (base, target, then the links: `field_nodes`'s order)
+        # of the base's and target's x, y, of each link's coordinates, of the flexible ones
+        ends = 6 + np.cumsum([3 if it.rigid else len(it.coords) for it in model.links])
+        self.n_carrier = int(ends[-1])
+        self.carrier_points = np.array([[0, 1], [3, 4]], dtype=np.int64)
+        self.carrier_links = [slice(int(e) - (3 if it.rigid else len(it.coords)), int(e))
+                              for it, e in zip(model.links, ends)]
+        self.carrier_flex = np.array([np.arange(self.n_carrier)[self.carrier_links[i]] for i in self.flex],
+                                     dtype=np.int64).reshape(len(self.flex), model.mesh.nq)
+        self.uniform: tuple[float, np.ndarray] | None = None  # (base mass, U) of the last build
+        # its pre-step function is registered while there is thrust (`Stepper.advance`)
+        self.thrust_inertia = _ThrustInertia(model.carrier, model.base_node, theta_ref)
+
+    def advance_orbit(self, state, h: float, a_thr: np.ndarray) -> None:
+        """O of `state` over one control interval: r̈_O = g(r_O) + a_thr (physics.md §5),
+        classical RK4 (`orbit_rk4`; a_thr, the interval's mean thrust acceleration, held)."""
         ax, ay = float(a_thr[0]), float(a_thr[1])
         if not self.orbit and ax == 0.0 and ay == 0.0:
             return
         mu = self.params.orbit.mu if self.orbit else 0.0
-        (x, y), (vx, vy) = self.r_O.tolist(), self.v_O.tolist()
+        (x, y), (vx, vy) = state.r_O.tolist(), state.v_O.tolist()
         x, y, vx, vy = orbit_rk4(x, y, vx, vy, ax, ay, mu, h)
-        self.r_O = np.array([x, y])
-        self.v_O = np.array([vx, vy])
+        state.r_O = np.array([x, y])
+        state.v_O = np.array([vx, vy])
 
-    def _uniform_field_matrix(self, m_base: float) -> np.ndarray:
+    def uniform_field_matrix(self, m_base: float) -> np.ndarray:
         """U with U a = generalised forces of a uniform acceleration field a on every mass
         element (physics.md §5: M_X[:, R] a), carrier coordinates × 2, for the base mass
         `m_base` [kg].  Built once; when that mass (propellant, at every sample of a burn)
         has changed, a copy with the base's two entries replaced (the last U may still be
         held by a `_ThrustInertia`)."""
-        if self._uniform is not None:
-            if self._uniform[0] == m_base:
-                return self._uniform[1]
-            U = self._uniform[1].copy()
+        if self.uniform is not None:
+            if self.uniform[0] == m_base:
+                return self.uniform[1]
+            U = self.uniform[1].copy()
             U[0, 0] = U[1, 1] = m_base
-            self._uniform = (m_base, U)
+            self.uniform = (m_base, U)
             return U
         p = self.params
         blocks = [np.array([[m, 0.0], [0.0, m], [0.0, 0.0]]) for m in (m_base, p.target.mass)]
-        for it in self.links:
+        for it in self.model.links:
             if it.rigid:
                 # about the link COM a uniform field has no moment
                 blocks.append(np.array([[p.link.mass, 0.0], [0.0, p.link.mass], [0.0, 0.0]]))
             else:
-                blocks.append(self.first.T)
-        self._uniform = (m_base, np.vstack(blocks))
-        return self._uniform[1]
+                blocks.append(self.model.first.T)
+        self.uniform = (m_base, np.vstack(blocks))
+        return self.uniform[1]
 
-    def _tidal_forces(self, q, v, s: float, r_O: np.ndarray, m_base: float) -> np.ndarray:
+    def tidal_forces(self, q, v, s: float, r_O: np.ndarray, m_base: float) -> np.ndarray:
         """Generalised forces of the exact tidal field at the positions q + s q̇ (`v` = q̇,
         `s` [s]: the positions s ahead on their tangent; s = 0: at q) about the orbit point
         r_O (zero without an orbit), the base of mass `m_base` [kg], carrier coordinates:
         base and target at their COM, a flexible link over its Gauss points
         (`tidal_carrier_forces`, the same S for every link: one mesh), a rigid link over its
         own Gauss points with the moment about its centre.  Each part is written into its
-        place of the carrier's vector (`_carrier_points`, `_carrier_flex`, `_carrier_links`;
+        place of the carrier's vector (`carrier_points`, `carrier_flex`, `carrier_links`;
         called every control sample)."""
-        out = np.zeros(self._n_carrier)
+        out = np.zeros(self.n_carrier)
         if not self.orbit:
             return out
         p = self.params
         mu = p.orbit.mu
         r_O = np.asarray(r_O, float)
-        cols, vals = self._field_S
-        tidal_carrier_forces(q, v, float(s), self._flex_coords, self._carrier_flex, cols, vals, self._field_weights,
-                             self._field_points, self._carrier_points, np.array([m_base, p.target.mass]), r_O, mu, out)
-        xs_rigid, ws_rigid = self._rigid_gauss
-        for it in self.links:
+        cols, vals = self.S
+        tidal_carrier_forces(q, v, float(s), self.flex_coords, self.carrier_flex, cols, vals, self.weights,
+                             self.points, self.carrier_points, np.array([m_base, p.target.mass]), r_O, mu, out)
+        xs_rigid, ws_rigid = self.rigid_gauss
+        for it in self.model.links:
             if not it.rigid:
                 continue
             qi = q[it.coords] + s * v[it.coords]
             pts = qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])])
             f = p.link.rho_a * ws_rigid[:, None] * tidal(mu, r_O, pts)
             lever = pts - qi[:2]
-            out[self._carrier_links[it.index]] = (f[:, 0].sum(), f[:, 1].sum(),
-                                                  np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0]))
+            out[self.carrier_links[it.index]] = (f[:, 0].sum(), f[:, 1].sum(),
+                                                 np.sum(lever[:, 0] * f[:, 1] - lever[:, 1] * f[:, 0]))
         return out
 
 

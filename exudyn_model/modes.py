@@ -81,9 +81,9 @@ def linear_plant(case, outputs, n_inputs: int = 7, eps: float = 1e-7, **engine_o
     F = np.zeros((n, n_inputs))
     for j in range(n_inputs):
         tau = np.eye(6)[j] if j < 6 else np.zeros(6)  # a unit motor torque, or the base torque
-        engine._set_inputs((tau, 1.0 if j == 6 else 0.0, 0.0), None)
+        engine.stepper.set_inputs((tau, 1.0 if j == 6 else 0.0, 0.0), None)
         F[:, j] = f(q0, v0) - f0
-    engine._set_inputs((np.zeros(6), 0.0, 0.0), None)
+    engine.stepper.set_inputs((np.zeros(6), 0.0, 0.0), None)
     G = cf.constraint_jacobian()
     G = G[n:, :n] if G.shape[0] > n else G
     N = sl.null_space(G)

@@ -4,7 +4,9 @@ coordinates by the index tables of `exudyn_model.build`, and the grasp forces by
 index-1 solve of `exudyn_model.reactions`.  The reference's mirror is
 `reference_model/observe.py`.
 
-`ObserveMixin` is that part of `exudyn_model.engine.ExudynEngine`.
+`Observer` is the engine's observing part: it reads the built model and the run's state
+and changes neither (the grasp forces set the coming period's inputs into the mbs for
+their solve and put the old ones back, `reactions.held_inputs`).
 """
 
 from __future__ import annotations
@@ -15,8 +17,9 @@ import numpy as np
 
 from exudyn_model import field as fld
 from exudyn_model import links, reactions
-from exudyn_model.build import _perp
+from exudyn_model.build import perp
 from exudyn_model.field import N_GAUSS_FIELD
+from exudyn_model.state import EngineState, base_mass, coordinates, system_mass
 from rsmcheck.core.engine import Inputs, Sensors
 from rsmcheck.core.geometry import rot
 
@@ -25,104 +28,121 @@ def _cross(a, b) -> float:
     return float(a[0] * b[1] - a[1] * b[0])
 
 
-class ObserveMixin:
-    """`ExudynEngine`'s sensors (`_sensors`) and observables (`_observables`)."""
+def end_effectors(model, q, v) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity of each arm's end effector (row k), inertial axes: the distal
+    pin of its terminal link, for flexible links the tip node's x, y (`index.ee`)."""
+    ee = model.index.ee
+    if ee is not None:
+        return q[ee], v[ee]
+    L = model.params.link.length
+    r = np.zeros((2, 2))
+    rd = np.zeros((2, 2))
+    for k in range(2):
+        it = model.links[3 * k + 2]
+        qi, vi = q[it.coords], v[it.coords]
+        d = 0.5 * L * np.array([math.cos(qi[2]), math.sin(qi[2])])
+        r[k] = qi[:2] + d
+        rd[k] = vi[:2] + vi[2] * perp(d)
+    return r, rd
 
-    def _frame_angles(self, q, v) -> tuple[np.ndarray, np.ndarray]:
-        return q[self.i_frame], v[self.i_frame]
 
-    def _end_effectors(self, q, v) -> tuple[np.ndarray, np.ndarray]:
-        """Position and velocity of each arm's end effector (row k), inertial axes: the
-        distal pin of its terminal link, for flexible links the tip node's x, y (`_i_ee`)."""
-        if self._i_ee is not None:
-            return q[self._i_ee], v[self._i_ee]
-        L = self.params.link.length
-        r = np.zeros((2, 2))
-        rd = np.zeros((2, 2))
-        for k in range(2):
-            it = self.links[3 * k + 2]
-            qi, vi = q[it.coords], v[it.coords]
-            d = 0.5 * L * np.array([math.cos(qi[2]), math.sin(qi[2])])
-            r[k] = qi[:2] + d
-            rd[k] = vi[:2] + vi[2] * _perp(d)
-        return r, rd
+class Observer:
+    """The engine's sensors (`sensors`) and observables (`observables`) of `model` in
+    `state`; the grasp forces by the index-1 solve of `constraint_forces` with the held
+    inputs set through `stepper`."""
 
-    def _com(self, q) -> tuple[np.ndarray, float]:
+    def __init__(self, model, state: EngineState, stepper, constraint_forces: reactions.ConstraintForces,
+                 orbit: bool, capture_arm: int, capture_point: np.ndarray):
+        """`orbit`: the case has one; `capture_arm`, `capture_point`: the case's capture
+        (its gap is an observable), the point in the target's frame [m]."""
+        self.model, self.state, self.stepper = model, state, stepper
+        self.constraint_forces = constraint_forces
+        self.orbit = bool(orbit)
+        self.capture_arm = capture_arm
+        self.capture_point = capture_point
+
+    def grasp_forces(self, inputs=None) -> np.ndarray:
+        """`reaction_forces_I` at the current state (`reactions.grasp_forces`), with `inputs`
+        held from it (None: the loads the mbs carries)."""
+        return reactions.grasp_forces(self.constraint_forces, self.model, self.state.grasp_on, self.stepper,
+                                      inputs)
+
+    def com(self, q) -> tuple[np.ndarray, float]:
         """System COM (relative to O) and mass: m_B r_B + m_T r_T + Σ ∫ρ r dξ over the links,
-        the link integrals as one matrix on all link coordinates (`_link_first`)."""
-        p = self.params
-        mB = self._mass_base()
-        s = mB * q[self.i_base[:2]] + p.target.mass * q[self.i_target[:2]] + self._link_first @ q[self._link_coords]
-        m = self._system_mass()
+        the link integrals as one matrix on all link coordinates (`index.link_first`)."""
+        p, ix = self.model.params, self.model.index
+        mB = base_mass(p, self.state)
+        s = mB * q[ix.i_base[:2]] + p.target.mass * q[ix.i_target[:2]] + ix.link_first @ q[ix.link_coords]
+        m = system_mass(p, self.state)
         return s / m, m
 
-    def _system_mass(self) -> float:
-        """m_B + m_T + 6 m_link [kg] (the base's present mass, `_mass_base`)."""
-        p = self.params
-        return self._mass_base() + p.target.mass + 6 * p.link.mass
-
-    def _wrist_angles(self, q) -> np.ndarray:
+    def wrist_angles(self, q) -> np.ndarray:
         """ψ_w: θ_T relative to the distal hub of each terminal link."""
-        return q[self.i_target[2]] - q[self._i_wrist_hub]
+        ix = self.model.index
+        return q[ix.i_target[2]] - q[ix.wrist_hub]
 
-    def _sensors(self) -> Sensors:
+    def sensors(self) -> Sensors:
         """At every control sample: the coordinates gathered in one index array
-        (`_sensor_rows`, build.py `_index`), the sensors its slices and their differences."""
-        q, v = self._qv()
-        qs, vs = q[self._sensor_rows], v[self._sensor_rows]
-        at = self._sensor_at
-        if self._i_ee is not None:
+        (`index.sensor_rows`, indices.py), the sensors its slices and their differences."""
+        model, state = self.model, self.state
+        q, v = coordinates(model, state)
+        ix = model.index
+        qs, vs = q[ix.sensor_rows], v[ix.sensor_rows]
+        at = ix.sensor_at
+        if ix.ee is not None:
             rE, rEd = qs[at["ee"]].reshape(2, 2), vs[at["ee"]].reshape(2, 2)
         else:
-            rE, rEd = self._end_effectors(q, v)
-        com, m = self._com(q)
+            rE, rEd = end_effectors(model, q, v)
+        com, m = self.com(q)
         base, hub, hub_parent, frame, frame_parent = (at["base"], at["hub_prox"], at["hub_parent"], at["frame"],
                                                       at["frame_parent"])
         AB_T = rot(qs[base][2]).T
         return Sensors(
-            time=self.t, base_pose_I=qs[base], base_rate_I=vs[base],
+            time=state.t, base_pose_I=qs[base], base_rate_I=vs[base],
             joint_angles=qs[hub] - qs[hub_parent], joint_rates=vs[hub] - vs[hub_parent],
             joint_frame_angles=qs[frame] - qs[frame_parent], joint_frame_rates=vs[frame] - vs[frame_parent],
             wrist_angles=qs[at["target"]][2] - qs[at["wrist_hub"]],
             motor_angles=qs[at["rotor"]], motor_rates=vs[at["rotor"]],
             ee_pos_I=rE, ee_vel_I=rEd,
             target_pose_I=qs[at["target"]], target_rate_I=vs[at["target"]],
-            com_pos_B=AB_T @ (com - qs[base][:2]), grasp_state=self.grasp_on.copy(),
-            system_mass=m, orbit_r_I=self.r_O.copy(), orbit_v_I=self.v_O.copy())
+            com_pos_B=AB_T @ (com - qs[base][:2]), grasp_state=state.grasp_on.copy(),
+            system_mass=m, orbit_r_I=state.r_O.copy(), orbit_v_I=state.v_O.copy())
 
-    def _observables(self, inputs: Inputs) -> dict:
-        p = self.params
-        q, v = self._qv()
-        th, om = self._frame_angles(q, v)
+    def observables(self, inputs: Inputs) -> dict:
+        """Every observable (docs/physics.md §11) at the current sample, `inputs` held from it."""
+        model, state = self.model, self.state
+        p, ix = model.params, model.index
+        q, v = coordinates(model, state)
+        th = q[ix.i_frame]
         s = self.sensors()
-        rB = q[self.i_base[:2]]
-        thB = q[self.i_base[2]]
+        rB = q[ix.i_base[:2]]
+        thB = q[ix.i_base[2]]
         AB_T = rot(thB).T
-        XT = q[self.i_target]
+        XT = q[ix.i_target]
         rE, rEd = s.ee_pos_I, s.ee_vel_I
         cap = XT[:2] + rot(XT[2]) @ self.capture_point
         # grasp forces by the index-1 solve at this sample with the inputs held from it
         # (exudyn_model.reactions): the integrator's index-3 multipliers have a round-off
         # floor ∝ 1/h² (docs/exudyn.md §6) and belong to the last period's inputs
-        reaction = reactions.grasp_forces(self, inputs)
+        reaction = self.grasp_forces(inputs)
         residual = np.zeros(4)
         for k in range(2):
-            if self.grasp_on[k]:
-                residual[2 * k:2 * k + 2] = rE[k] - (XT[:2] + rot(XT[2]) @ self.rho_G[k])
+            if state.grasp_on[k]:
+                residual[2 * k:2 * k + 2] = rE[k] - (XT[:2] + rot(XT[2]) @ state.rho_G[k])
         deflection = np.zeros(6)
-        for it in self.links:
+        for it in model.links:
             if not it.rigid:
                 qi = q[it.coords]
                 n = np.array([-math.sin(th[it.index]), math.cos(th[it.index])])
-                deflection[it.index] = n @ (self.pos_mid @ qi - qi[:2])
-        r_abs = self.r_O + rB
+                deflection[it.index] = n @ (model.pos_mid @ qi - qi[:2])
+        r_abs = state.r_O + rB
         radial = r_abs / np.linalg.norm(r_abs) if self.orbit else np.array([1.0, 0.0])
         along = np.array([-radial[1], radial[0]])
         d_T = XT[:2] - rB
-        com = self._com(q)[0]
+        com = self.com(q)[0]
         return {
-            "time": self.t,
-            "base_pose_I": q[self.i_base].copy(),
+            "time": state.t,
+            "base_pose_I": q[ix.i_base].copy(),
             "target_pose_B": np.array([*(AB_T @ d_T), XT[2] - thB]),
             "ee1_pos_B": AB_T @ (rE[0] - rB),
             "ee2_pos_B": AB_T @ (rE[1] - rB),
@@ -139,72 +159,78 @@ class ObserveMixin:
             "target_attitude": float(XT[2]),
             "reaction_forces_I": reaction,
             "constraint_residual": residual,
-            "grasp_state": self.grasp_on.astype(float),
-            "energy": self._energy(q, v, s),
-            "momentum_I": self._momentum(q, v),
-            "altitude": float(np.linalg.norm(self.r_O + com) - p.orbit.earth_radius) if self.orbit else 0.0,
+            "grasp_state": state.grasp_on.astype(float),
+            "energy": self.energy(q, v, s),
+            "momentum_I": self.momentum(q, v),
+            "altitude": float(np.linalg.norm(state.r_O + com) - p.orbit.earth_radius) if self.orbit else 0.0,
             "target_rel_lvlh": np.array([d_T @ radial, d_T @ along]),
             "system_mass": float(s.system_mass),
         }
 
-    def _energy(self, q, v, s: Sensors) -> np.ndarray:
-        p = self.params
-        mB = self._mass_base()
-        vb, vt = v[self.i_base], v[self.i_target]
+    def energy(self, q, v, s: Sensors) -> np.ndarray:
+        """Kinetic, elastic and tidal potential energy [J] at q, q̇ (`s`: their sensors)."""
+        model = self.model
+        p, ix = model.params, model.index
+        mB = base_mass(p, self.state)
+        vb, vt = v[ix.i_base], v[ix.i_target]
         kin = 0.5 * mB * (vb[0] ** 2 + vb[1] ** 2) + 0.5 * p.base.inertia_z * vb[2] ** 2
         kin += 0.5 * p.target.mass * (vt[0] ** 2 + vt[1] ** 2) + 0.5 * p.target.inertia_z * vt[2] ** 2
         el = 0.0
         ei, ea = p.link.ei, p.link.axial_to_bending * p.link.ei
-        for it in self.links:
+        for it in model.links:
             qi, vi = q[it.coords], v[it.coords]
             if it.rigid:
                 kin += 0.5 * p.link.mass * (vi[0] ** 2 + vi[1] ** 2) + 0.5 * p.link.inertia_z * vi[2] ** 2
             else:
-                kin += 0.5 * vi @ self.mass_ancf @ vi + 0.5 * p.link.inertia_extra * v[self.i_frame[it.index]] ** 2
-                el += self.mesh.strain_energy(qi, ei, ea)
+                kin += 0.5 * vi @ model.mass_ancf @ vi + 0.5 * p.link.inertia_extra * v[ix.i_frame[it.index]] ** 2
+                el += model.mesh.strain_energy(qi, ei, ea)
         kin += 0.5 * p.motor.inertia * float(np.sum(s.motor_rates**2))
         el += 0.5 * p.motor.stiffness * float(np.sum((s.motor_angles - s.joint_angles) ** 2))
-        psi_w = self._wrist_angles(q)
+        psi_w = self.wrist_angles(q)
         for k in range(2):
-            if self.grasp_on[k]:
+            if self.state.grasp_on[k]:
                 over = abs(psi_w[k]) - p.wrist.limit
                 if over > 0:
                     el += 0.5 * p.wrist.stiffness * over**2
-        grav = self._tidal_energy(q) if self.orbit else 0.0
+        grav = self.tidal_energy(q) if self.orbit else 0.0
         return np.array([kin, el, grav])
 
-    def _tidal_energy(self, q) -> float:
-        p = self.params
+    def tidal_energy(self, q) -> float:
+        """The tidal potential energy [J] of every mass element about O."""
+        model, r_O = self.model, self.state.r_O
+        p, ix = model.params, model.index
         mu = p.orbit.mu
-        e = self._mass_base() * float(fld.tidal_potential(mu, self.r_O, q[self.i_base[:2]]))
-        e += p.target.mass * float(fld.tidal_potential(mu, self.r_O, q[self.i_target[:2]]))
-        for it in self.links:
+        e = base_mass(p, self.state) * float(fld.tidal_potential(mu, r_O, q[ix.i_base[:2]]))
+        e += p.target.mass * float(fld.tidal_potential(mu, r_O, q[ix.i_target[:2]]))
+        for it in model.links:
             qi = q[it.coords]
             if it.rigid:
                 L = p.link.length
                 xs, ws = links.gauss(8, -0.5 * L, 0.5 * L)
                 pts = qi[:2] + np.outer(xs, [math.cos(qi[2]), math.sin(qi[2])])
             else:
-                _, ws, pts = self.mesh.points(qi, N_GAUSS_FIELD)
-            e += p.link.rho_a * float(np.sum(ws * fld.tidal_potential(mu, self.r_O, pts)))
+                _, ws, pts = model.mesh.points(qi, N_GAUSS_FIELD)
+            e += p.link.rho_a * float(np.sum(ws * fld.tidal_potential(mu, r_O, pts)))
         return e
 
-    def _momentum(self, q, v) -> np.ndarray:
-        p = self.params
-        mB = self._mass_base()
-        qb, vb, qt, vt = q[self.i_base], v[self.i_base], q[self.i_target], v[self.i_target]
+    def momentum(self, q, v) -> np.ndarray:
+        """Linear and angular momentum (about O) [kg·m/s, kg·m²/s], inertial axes."""
+        model = self.model
+        p, ix = model.params, model.index
+        mB = base_mass(p, self.state)
+        qb, vb, qt, vt = q[ix.i_base], v[ix.i_base], q[ix.i_target], v[ix.i_target]
         lin = mB * vb[:2] + p.target.mass * vt[:2]
         ang = mB * _cross(qb[:2], vb[:2]) + p.base.inertia_z * vb[2]
         ang += p.target.mass * _cross(qt[:2], vt[:2]) + p.target.inertia_z * vt[2]
-        for it in self.links:
+        for it in model.links:
             qi, vi = q[it.coords], v[it.coords]
             if it.rigid:
                 lin = lin + p.link.mass * vi[:2]
                 ang += p.link.mass * _cross(qi[:2], vi[:2]) + p.link.inertia_z * vi[2]
             else:
-                lin = lin + self.first @ vi
-                _, ws, rs = self.mesh.points(qi, N_GAUSS_FIELD)
-                _, _, vs = self.mesh.points(vi, N_GAUSS_FIELD)
+                lin = lin + model.first @ vi
+                _, ws, rs = model.mesh.points(qi, N_GAUSS_FIELD)
+                _, _, vs = model.mesh.points(vi, N_GAUSS_FIELD)
                 ang += p.link.rho_a * float(np.sum(ws * (rs[:, 0] * vs[:, 1] - rs[:, 1] * vs[:, 0])))
-                ang += p.link.inertia_extra * v[self.i_frame[it.index]]
+                ang += p.link.inertia_extra * v[ix.i_frame[it.index]]
         return np.array([lin[0], lin[1], ang])

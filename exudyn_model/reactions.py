@@ -228,63 +228,56 @@ class ConstraintForces:
         return [lam[np.asarray(sd.GetObjectLTGAE(o), dtype=int)] for o in objects]
 
 
-def for_engine(engine) -> ConstraintForces:
-    """The `ConstraintForces` of an `ExudynEngine` (created on first use, kept on the engine)."""
-    cf = engine.__dict__.get("_constraint_forces")
-    if cf is None or cf.mbs is not engine.mbs:
-        cf = engine.__dict__["_constraint_forces"] = ConstraintForces(engine.mbs)
-    return cf
-
-
 @contextlib.contextmanager
-def held_inputs(engine, inputs):
-    """Within the block the mbs carries `inputs` as `ExudynEngine.advance` applies them at
-    the start of the coming period (`ExudynEngine._set_inputs`, the same code), the thrust
-    inertia through a copy of the engine's `_ThrustInertia`, whose own state is left alone;
-    the tidal field is that of the sample's own positions (span 0), where the integrator
-    holds the one of the period's middle.  Everything set is put back afterwards.
+def held_inputs(model, stepper, inputs):
+    """Within the block `model`'s mbs carries `inputs` as `ExudynEngine.advance` applies them
+    at the start of the coming period (`stepper.Stepper.set_inputs`, the same code), the
+    thrust inertia through a copy of the field part's `_ThrustInertia`, whose own state is
+    left alone; the tidal field is that of the sample's own positions (span 0), where the
+    integrator holds the one of the period's middle.  Everything set is put back afterwards.
 
     Why: at a control sample the loads in the mbs are still the last period's, while an
     observable belongs to the sample with the inputs held from it (the reference evaluates
     its reactions with them).  τ_m acts on the rotor coordinates only (no mass coupling)
     and never changes λ; τ_B, thrust and the field do (measured against the reference,
     rigid, h = 7.8 µs: capture 1.7e-5 → 6.9e-7, wrist_bistop 8.1e-7 → 1.2e-7)."""
-    mbs = engine.mbs
-    loads = [(ld, "load") for ld in engine.motor_loads]
-    loads += [(engine.base_torque_load, "loadVector"), (engine.thrust_load, "loadVector")]
-    objects = [(engine.carrier, "forceVector")] if engine.field else []
+    mbs = model.mbs
+    field_forces = stepper.field_forces
+    loads = [(ld, "load") for ld in model.motor_loads]
+    loads += [(model.base_torque_load, "loadVector"), (model.thrust_load, "loadVector")]
+    objects = [(model.carrier, "forceVector")] if field_forces is not None else []
     old_loads = [mbs.GetLoadParameter(ld, name) for ld, name in loads]
     old_objects = [mbs.GetObjectParameter(ob, name) for ob, name in objects]
-    old_mass = engine._base_mass
+    old_mass = stepper.base_mass
     held = (tuple(np.asarray(inputs.tau_m, float)), float(inputs.tau_B), float(inputs.thrust))
     try:
-        engine._set_inputs(held, copy.copy(engine._thrust_inertia) if engine.field else None)
+        stepper.set_inputs(held, copy.copy(field_forces.thrust_inertia) if field_forces is not None else None)
         yield
     finally:
         for (ld, name), val in zip(loads, old_loads):
             mbs.SetLoadParameter(ld, name, val)
         for (ob, name), val in zip(objects, old_objects):
             mbs.SetObjectParameter(ob, name, val)
-        engine._set_base_mass(old_mass)  # the base and the integrator's mass matrix
+        stepper.set_base_mass(old_mass)  # the base and the integrator's mass matrix
 
 
-def grasp_forces(engine, inputs=None) -> np.ndarray:
-    """`reaction_forces_I` of an `ExudynEngine` [N] (4: grasp 1 x, y, grasp 2 x, y; inertial
-    axes; zero for a grasp that is off) by the index-1 solve at the current state, with the
-    sign of `GetObjectOutput(grasp joint, Force)`: the force of the arm on the target
-    (marker 0 of the joint; Exudyn's M q̈ + Gᵀλ = f puts −λ on the marker-1 body).
+def grasp_forces(cf: ConstraintForces, model, grasp_on, stepper=None, inputs=None) -> np.ndarray:
+    """`reaction_forces_I` of the built `model` [N] (4: grasp 1 x, y, grasp 2 x, y; inertial
+    axes; zero for a grasp that is off, `grasp_on`) by the index-1 solve of `cf` (on
+    `model`'s mbs) at the current state, with the sign of `GetObjectOutput(grasp joint,
+    Force)`: the force of the arm on the target (marker 0 of the joint; Exudyn's
+    M q̈ + Gᵀλ = f puts −λ on the marker-1 body).
 
     inputs: the held inputs of the coming period (`rsmcheck.core.engine.Inputs`), applied for the
-    evaluation by `held_inputs`; None: the loads as they stand in the mbs (those of the
-    period that just ended, the state the integrator's own multipliers belong to)."""
+    evaluation by `held_inputs` through `stepper`; None: the loads as they stand in the mbs
+    (those of the period that just ended, the state the integrator's own multipliers belong to)."""
     out = np.zeros(4)
-    if not np.any(engine.grasp_on):
+    if not np.any(grasp_on):
         return out
-    cf = for_engine(engine)
-    with held_inputs(engine, inputs) if inputs is not None else contextlib.nullcontext():
+    with held_inputs(model, stepper, inputs) if inputs is not None else contextlib.nullcontext():
         lam = cf.multipliers()
-    forces = cf.object_forces(engine.grasp_joints, lam)
+    forces = cf.object_forces(model.grasp_joints, lam)
     for k in range(2):
-        if engine.grasp_on[k]:
+        if grasp_on[k]:
             out[2 * k:2 * k + 2] = forces[k][:2]
     return out

@@ -59,7 +59,7 @@ def test_rigid_start_takes_spring_twists_and_propellant():
     assert np.allclose(s2.motor_angles - s2.joint_angles, s1.motor_angles - s1.joint_angles, atol=1e-13)
     assert np.allclose(s2.motor_rates - s2.joint_rates, s1.motor_rates - s1.joint_rates, atol=1e-12)
     assert np.max(np.abs(s1.joint_angles - s1.joint_frame_angles)) > 1e-7  # the bend was real
-    assert second.m_used == 2.5
+    assert second.state.m_used == 2.5
     assert s2.system_mass == pytest.approx(s1.system_mass - 2.5, abs=1e-12)
 
 
@@ -82,8 +82,8 @@ def test_orbit_placement_shifts_every_position_alike():
     assert np.linalg.norm(a["base_pose_I"][:2] + A @ a["com_pos_B"]) > 1e-6
     # a PP terminal link's P is not shifted with the rest: it stays parked at the new
     # model's reference, where its two coordinate constraints hold (exudyn_model/build.py)
-    q, v = second._qv()
-    for it in [it for it in second.links if it.p_node is not None]:
-        assert it.basis == "PP"
+    q, v = second.coordinates()
+    for it in [it for it in second.model.links if it.p_node is not None]:
+        assert second.state.basis[it.index] == "PP"
         ip = second.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
-        assert np.array_equal(q[ip], second.q_ref[ip]) and not np.any(v[ip]), it.index
+        assert np.array_equal(q[ip], second.model.index.q_ref[ip]) and not np.any(v[ip]), it.index

@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 from exudyn_model.engine import ExudynEngine
+from exudyn_model.switching import first_moment, plastic_impact, switch_basis
 from rsmcheck.core.cases import load_case
 from rsmcheck.orchestration.compare import compare_runs
 from rsmcheck.core.engine import Inputs
@@ -62,56 +63,57 @@ def test_initial_state_is_the_shared_one(free_drift, rigid):
 
 @pytest.mark.parametrize("rigid", [True, False])
 def test_sensors_read_the_coordinates_they_name(free_drift, rigid):
-    """The sensors are slices of one gather (`_sensor_rows`): at a state where every
-    coordinate and rate differs, each must equal its definition by the index tables of
-    `_index` (ψ_J = proximal hub − parent's distal hub, θ_J = frame − parent frame,
+    """The sensors are slices of one gather (`index.sensor_rows`): at a state where every
+    coordinate and rate differs, each must equal its definition by the index tables
+    (`exudyn_model.indices`: ψ_J = proximal hub − parent's distal hub, θ_J = frame − parent frame,
     ψ_w = θ_T − terminal distal hub, the end effector = the tip node's x, y)."""
     eng = ExudynEngine(free_drift, rigid=rigid)
     sd = eng.mbs.systemData
     rng = np.random.default_rng(7)
-    n = len(eng.q_ref)
+    n = len(eng.model.index.q_ref)
     sd.SetODE2Coordinates(np.asarray(sd.GetODE2Coordinates()) + rng.normal(0.0, 1e-2, n))
     sd.SetODE2Coordinates_t(rng.normal(0.0, 1.0, n))
-    q, v = eng._qv()
+    q, v = eng.coordinates()
     s = eng.sensors()
-    parent_hub = np.array([eng.i_base[2], *eng.i_hub_dist[:2], eng.i_base[2], *eng.i_hub_dist[3:5]])
-    parent_frame = np.array([eng.i_base[2], *eng.i_frame[:2], eng.i_base[2], *eng.i_frame[3:5]])
-    expected = {"base_pose_I": q[eng.i_base], "base_rate_I": v[eng.i_base],
-                "target_pose_I": q[eng.i_target], "target_rate_I": v[eng.i_target],
-                "motor_angles": q[eng.i_rotor], "motor_rates": v[eng.i_rotor],
-                "joint_angles": q[eng.i_hub_prox] - q[parent_hub], "joint_rates": v[eng.i_hub_prox] - v[parent_hub],
-                "joint_frame_angles": q[eng.i_frame] - q[parent_frame],
-                "joint_frame_rates": v[eng.i_frame] - v[parent_frame],
-                "wrist_angles": q[eng.i_target[2]] - q[eng.i_hub_dist[[2, 5]]]}
+    ix = eng.model.index
+    parent_hub = np.array([ix.i_base[2], *ix.i_hub_dist[:2], ix.i_base[2], *ix.i_hub_dist[3:5]])
+    parent_frame = np.array([ix.i_base[2], *ix.i_frame[:2], ix.i_base[2], *ix.i_frame[3:5]])
+    expected = {"base_pose_I": q[ix.i_base], "base_rate_I": v[ix.i_base],
+                "target_pose_I": q[ix.i_target], "target_rate_I": v[ix.i_target],
+                "motor_angles": q[ix.i_rotor], "motor_rates": v[ix.i_rotor],
+                "joint_angles": q[ix.i_hub_prox] - q[parent_hub], "joint_rates": v[ix.i_hub_prox] - v[parent_hub],
+                "joint_frame_angles": q[ix.i_frame] - q[parent_frame],
+                "joint_frame_rates": v[ix.i_frame] - v[parent_frame],
+                "wrist_angles": q[ix.i_target[2]] - q[ix.i_hub_dist[[2, 5]]]}
     if not rigid:
-        tips = [eng.links[i].coords[-4:-2] for i in (2, 5)]
+        tips = [eng.model.links[i].coords[-4:-2] for i in (2, 5)]
         expected.update(ee_pos_I=np.array([q[t] for t in tips]), ee_vel_I=np.array([v[t] for t in tips]))
     for name, value in expected.items():
         assert np.array_equal(getattr(s, name), value), name
 
 
 def test_the_state_of_a_sample_is_read_again_after_every_change(free_drift):
-    """`_qv` returns the state read at the end of `advance` until the state changes: a
-    capture, a release, a restart or any other change goes through `_pause`, after which it
+    """`coordinates()` returns the state read at the end of `advance` until the state changes: a
+    capture, a release, a restart or any other change goes through `Stepper.pause`, after which it
     is read from Exudyn again (else the sensors would see the state before the change)."""
     eng = ExudynEngine(free_drift)
     eng.advance(1e-3, Inputs())
-    q1, v1 = eng._qv()
-    assert eng._qv()[0] is q1  # the sample's arrays, not a new copy
+    q1, v1 = eng.coordinates()
+    assert eng.coordinates()[0] is q1  # the sample's arrays, not a new copy
     with pytest.raises(ValueError):  # and read-only: a reader cannot change them for the others
         q1[0] += 1.0
     sd = eng.mbs.systemData
-    eng._pause()
+    eng.stepper.pause()
     sd.SetODE2Coordinates_t(np.asarray(sd.GetODE2Coordinates_t()) + 1e-3)
-    assert np.array_equal(eng._qv()[1], v1 + 1e-3)
-    assert np.array_equal(eng.sensors().base_rate_I, v1[eng.i_base] + 1e-3)
+    assert np.array_equal(eng.coordinates()[1], v1 + 1e-3)
+    assert np.array_equal(eng.sensors().base_rate_I, v1[eng.model.index.i_base] + 1e-3)
     eng.advance(2e-3, Inputs())
-    assert eng.sensors().time == 2e-3 and eng._qv()[0] is not q1
-    before = eng._qv()[1].copy()
-    info = eng.release(1) if eng.grasp_on[0] else eng.capture(1)  # a switch projects the velocities
+    assert eng.sensors().time == 2e-3 and eng.coordinates()[0] is not q1
+    before = eng.coordinates()[1].copy()
+    info = eng.release(1) if eng.state.grasp_on[0] else eng.capture(1)  # a switch projects the velocities
     assert info["impact_loss_J"] >= 0.0
-    assert np.array_equal(eng._qv()[1], np.asarray(sd.GetODE2Coordinates_t()))
-    assert not np.array_equal(eng._qv()[1], before)
+    assert np.array_equal(eng.coordinates()[1], np.asarray(sd.GetODE2Coordinates_t()))
+    assert not np.array_equal(eng.coordinates()[1], before)
 
 
 @pytest.mark.crosscheck
@@ -132,19 +134,19 @@ def test_pf_frame_is_mass_orthogonal_and_pp_frame_is_the_chord(free_drift):
     eng = ExudynEngine(free_drift)
     for k in range(1, 201):
         eng.advance(k * 1e-3, Inputs())
-    q, _ = eng._qv()
+    q, _ = eng.coordinates()
     p = eng.params.link
-    for it in eng.links:
+    for it in eng.model.links:
         qi = q[it.coords]
-        th = q[eng.i_frame[it.index]]
+        th = q[eng.model.index.i_frame[it.index]]
         n = np.array([-math.sin(th), math.cos(th)])
         R = qi[:2]
-        if it.basis == "PF":
-            w_moment = n @ (eng.moment @ qi - 0.5 * p.mass * p.length * R)
-            assert abs(w_moment) < 1e-14 * eng.I0, (it.index, w_moment)
+        if eng.state.basis[it.index] == "PF":
+            w_moment = n @ (eng.model.moment @ qi - 0.5 * p.mass * p.length * R)
+            assert abs(w_moment) < 1e-14 * eng.model.I0, (it.index, w_moment)
         else:
             assert abs(n @ (qi[-4:-2] - R)) < 1e-12, it.index
-    assert [it.basis for it in eng.links] == ["PP", "PP", "PP", "PP", "PP", "PF"]
+    assert eng.state.basis == ["PP", "PP", "PP", "PP", "PP", "PF"]
 
 
 def test_the_pf_point_is_tied_to_the_beam_only_while_the_link_is_pf(free_drift):
@@ -152,36 +154,36 @@ def test_the_pf_point_is_tied_to_the_beam_only_while_the_link_is_pf(free_drift):
     in PP it is parked at its reference position and the tie is off (build.py), and each
     basis switch places it where the new constraints hold (switching._switch_basis)."""
     eng = ExudynEngine(free_drift)
-    it = eng.links[5]
+    it = eng.model.links[5]
     ip = eng.mbs.GetNodeODE2Index(it.p_node) + np.arange(2)
-    scale = eng.params.link.length / eng.I0
+    scale = eng.params.link.length / eng.model.I0
     active = lambda item: bool(eng.mbs.GetObjectParameter(item, "activeConnector"))  # noqa: E731
 
     def p_error():
         """|P − (R + (L/I_0)∫ρξ(r − R)dξ)| and the same for the velocities."""
-        q, v = eng._qv()
+        q, v = eng.coordinates()
         qi, vi = q[it.coords], v[it.coords]
-        return (np.abs(q[ip] - qi[:2] - scale * eng._first_moment(qi)).max(),
-                np.abs(v[ip] - vi[:2] - scale * eng._first_moment(vi)).max())
+        return (np.abs(q[ip] - qi[:2] - scale * first_moment(eng.model, qi)).max(),
+                np.abs(v[ip] - vi[:2] - scale * first_moment(eng.model, vi)).max())
 
     def parked():
-        q, v = eng._qv()
-        return np.abs(q[ip] - eng.q_ref[ip]).max() < 1e-14 and np.abs(v[ip]).max() < 1e-12
+        q, v = eng.coordinates()
+        return np.abs(q[ip] - eng.model.index.q_ref[ip]).max() < 1e-14 and np.abs(v[ip]).max() < 1e-12
 
     def switch(basis, t):
         """Switch (as a capture or release does) and fly 50 samples; the state right after
         the switch is checked before the solver could mend it."""
-        eng._pause()
-        eng._switch_basis(5, basis)
-        eng._plastic_impact()
-        eng._restart()
+        eng.stepper.pause()
+        switch_basis(eng.model, eng.state, 5, basis)
+        plastic_impact(eng.model, eng.constraint_forces)
+        eng.stepper.restart()
         right_after = p_error() if basis == "PF" else parked()
         for k in range(1, 51):
             eng.advance(t + k * 1e-3, Inputs())
         return t + 0.05, right_after
 
     t, (dq, dv) = switch("PF", 0.0)  # free_drift's arm 2 starts PF: no switch
-    assert it.basis == "PF" and active(it.p_tie) and not any(active(c) for c in it.p_park)
+    assert eng.state.basis[5] == "PF" and active(it.p_tie) and not any(active(c) for c in it.p_park)
     assert dq < 1e-12 and dv < 1e-10, (dq, dv)
     t, was_parked = switch("PP", t)
     assert not active(it.p_tie) and all(active(c) for c in it.p_park)
@@ -291,11 +293,11 @@ def test_release_conserves_momentum():
 
     class Probe(ExudynEngine):
         def release(self, arm):
-            q, v = self._qv()
-            self.before = (self._momentum(q, v), v[self.i_frame[3 * arm - 1]])
+            q, v = self.coordinates()
+            self.before = (self.observer.momentum(q, v), v[self.model.index.i_frame[3 * arm - 1]])
             info = super().release(arm)
-            q, v = self._qv()
-            self.after = (self._momentum(q, v), v[self.i_frame[3 * arm - 1]])
+            q, v = self.coordinates()
+            self.after = (self.observer.momentum(q, v), v[self.model.index.i_frame[3 * arm - 1]])
             return info
 
     eng = Probe(case, substeps=2)
@@ -321,7 +323,7 @@ def test_intervals_other_than_the_control_period(free_drift, stepping):
             t += span
             eng.advance(t, Inputs())
         assert abs(eng.mbs.systemData.GetTime() - t) < 1e-12
-        return eng._qv()[0]
+        return eng.coordinates()[0]
 
     base = final([1e-3] * 30)
     assert np.abs(final([1e-3] * 5 + [1e-2] * 2 + [1e-3] * 5) - base).max() < 1e-12
@@ -347,8 +349,8 @@ def test_case_exudyn_table_sets_the_step_and_options_override_it():
     release = load_case("release")
     full, short = ExudynEngine(release), ExudynEngine(release.variant(True))
     assert (full.substeps, full.jacobian_per_step, short.substeps, short.jacobian_per_step) == (32, True, 8, True)
-    assert full.settings.timeIntegration.newton.modifiedNewtonJacUpdatePerStep
-    assert not ExudynEngine(release, jacobian_per_step=False).settings.timeIntegration.newton.modifiedNewtonJacUpdatePerStep
+    assert full.stepper.settings.timeIntegration.newton.modifiedNewtonJacUpdatePerStep
+    assert not ExudynEngine(release, jacobian_per_step=False).stepper.settings.timeIntegration.newton.modifiedNewtonJacUpdatePerStep
     assert full.solver_settings()["jacobian_per_step"] is True
 
 
@@ -361,8 +363,8 @@ def test_stalled_newton_step_is_retried_with_a_looser_tolerance():
     eng = ExudynEngine(case, newton_atol=3e-5, substeps=32)
     r = run(eng, case, 0.01)
     assert eng.stats["newton_retries"] >= 1
-    assert eng.solver.newton.absoluteTolerance == 3e-5  # restored, in the solver's own copy
-    assert eng.settings.timeIntegration.newton.absoluteTolerance == 3e-5
+    assert eng.stepper.solver.newton.absoluteTolerance == 3e-5  # restored, in the solver's own copy
+    assert eng.stepper.settings.timeIntegration.newton.absoluteTolerance == 3e-5
     assert np.all(np.isfinite(np.asarray(r.observables["link_deflection"])))
     assert r.observables["time"][-1] == pytest.approx(0.01)
 
@@ -372,11 +374,11 @@ def test_a_new_newton_tolerance_reaches_the_solver():
     afterwards (the retry of a stalled step) must be set on that copy, not only on the
     settings (where it was, until 2026-11-24, without effect)."""
     eng = ExudynEngine(load_case("flex_arm_step").variant(True))
-    eng.solver.InitializeSolverInitialConditions(eng.mbs, eng.settings)
-    eng._set_newton_atol(7e-3)
-    eng.solver.InitializeSolverInitialConditions(eng.mbs, eng.settings)
-    assert eng.solver.newton.absoluteTolerance == 7e-3
-    assert eng.settings.timeIntegration.newton.absoluteTolerance == 7e-3
+    eng.stepper.solver.InitializeSolverInitialConditions(eng.mbs, eng.stepper.settings)
+    eng.stepper.set_newton_atol(7e-3)
+    eng.stepper.solver.InitializeSolverInitialConditions(eng.mbs, eng.stepper.settings)
+    assert eng.stepper.solver.newton.absoluteTolerance == 7e-3
+    assert eng.stepper.settings.timeIntegration.newton.absoluteTolerance == 7e-3
 
 
 def test_a_retry_finds_its_step_on_a_drifting_clock():
@@ -389,13 +391,13 @@ def test_a_retry_finds_its_step_on_a_drifting_clock():
     for k in range(1, 4):
         eng.advance(k * 1e-3, Inputs(tau_m=np.full(6, 0.5)))
     sd = eng.mbs.systemData
-    sd.SetTime(eng.t - 3e-11, exu.ConfigurationType.StartOfStep)
-    assert eng._retry_looser(eng.t + 1e-3)
-    assert sd.GetTime() == pytest.approx(eng.t + 1e-3, abs=1e-12)
+    sd.SetTime(eng.state.t - 3e-11, exu.ConfigurationType.StartOfStep)
+    assert eng.stepper.retry_looser(eng.state.t + 1e-3)
+    assert sd.GetTime() == pytest.approx(eng.state.t + 1e-3, abs=1e-12)
     # a step that does not start in the interval is reported, not retried
-    sd.SetTime(eng.t - 0.4e-3, exu.ConfigurationType.StartOfStep)
+    sd.SetTime(eng.state.t - 0.4e-3, exu.ConfigurationType.StartOfStep)
     with pytest.raises(SimulationDiverged, match="not in the interval"):
-        eng._retry_looser(eng.t + 1e-3)
+        eng.stepper.retry_looser(eng.state.t + 1e-3)
 
 
 def test_the_worker_ends_an_interval_within_a_quarter_step():
@@ -404,7 +406,7 @@ def test_the_worker_ends_an_interval_within_a_quarter_step():
     step past the sample; a step h/2 short of it is a step inside the interval."""
     eng = ExudynEngine(load_case("free_drift"), rigid=True)
     eng.advance(1e-3, Inputs())
-    worker = eng._worker
+    worker = eng.stepper.worker
     h = worker.h
     worker.target = 2e-3
     assert worker.ends_interval(2e-3 - 3e-9) and worker.ends_interval(2e-3 + 3e-9)
@@ -414,19 +416,19 @@ def test_the_worker_ends_an_interval_within_a_quarter_step():
 def test_one_suspended_run_per_thread(free_drift):
     """Two engines advanced in turn on one thread: starting a run ends the other engine's
     suspended one at its sample (an earlier `SolveSteps` returning before a later one
-    breaks pybind11's per-thread call stack and aborts the process: stepping.py's
-    `_Worker`).  Each engine lands on its samples, and the two, started alike and restarted
+    breaks pybind11's per-thread call stack and aborts the process: worker.py's
+    `Worker`).  Each engine lands on its samples, and the two, started alike and restarted
     alike, stay equal to the bit."""
     a = ExudynEngine(free_drift, rigid=True)
     b = ExudynEngine(free_drift, rigid=True)
     for k in range(1, 6):
         a.advance(k * 1e-3, Inputs())
-        assert a._worker.run is not None and b._worker.run is None
+        assert a.stepper.worker.run is not None and b.stepper.worker.run is None
         b.advance(k * 1e-3, Inputs())
-        assert b._worker.run is not None and a._worker.run is None
+        assert b.stepper.worker.run is not None and a.stepper.worker.run is None
         for eng in (a, b):
             assert eng.mbs.systemData.GetTime() == pytest.approx(k * 1e-3, abs=1e-12)
-    assert np.array_equal(np.concatenate(a._qv()), np.concatenate(b._qv()))
+    assert np.array_equal(np.concatenate(a.coordinates()), np.concatenate(b.coordinates()))
 
 
 @pytest.mark.parametrize("stepping", ["continuous", "period"])
@@ -442,7 +444,7 @@ def test_quiet_intervals_take_quiet_substeps_steps(free_drift, stepping):
     for span, h in [(1e-3, 5e-4), (5e-3, 2.5e-3), (5e-3, 2.5e-3), (1e-3, 5e-4)]:
         t += span
         eng.advance(t, Inputs())
-        assert eng.solver.it.currentStepSize == pytest.approx(h, rel=1e-12)
+        assert eng.stepper.solver.it.currentStepSize == pytest.approx(h, rel=1e-12)
         assert eng.mbs.systemData.GetTime() == pytest.approx(t, abs=1e-12)
     assert eng.stats["steps"] == 2 + 2 + 2 + 2
     assert eng.stats["restarts"] == 2  # one at each change of h
@@ -456,14 +458,14 @@ def test_a_sample_missed_by_the_solver_clock_is_an_error(free_drift, monkeypatch
     clock's time, instead of carrying a state that is a fraction of a step behind."""
     eng = ExudynEngine(free_drift, rigid=True)
     eng.advance(1e-3, Inputs())
-    step = eng._worker.step
+    step = eng.stepper.worker.step
 
     def short(t, t_next, h):
         ok = step(t, t_next, h)
         eng.mbs.systemData.SetTime(t_next - 0.2 * h)
         return ok
 
-    monkeypatch.setattr(eng._worker, "step", short)
+    monkeypatch.setattr(eng.stepper.worker, "step", short)
     with pytest.raises(SimulationDiverged, match="clock"):
         eng.advance(2e-3, Inputs())
 
@@ -492,13 +494,13 @@ def test_the_newton_jacobian_is_renewed_every_jacobian_period():
     assert np.abs(np.asarray(r_every.observables["joint_angles"])
                   - np.asarray(r_never.observables["joint_angles"])).max() < 1e-8
     # a request pending at a sample is withdrawn when the run ends there
-    worker = every._worker
-    every.advance(every.t + 1e-3, Inputs())  # (re)starts the suspended run
-    worker.next_jacobian = every.t + 0.75e-3  # the second 0.5 ms step, the interval's last, asks for one
-    every.advance(every.t + 1e-3, Inputs())
-    assert worker.jacobian_requested and every.solver.newton.modifiedNewtonJacUpdatePerStep
-    every._pause()
-    assert not worker.jacobian_requested and not every.solver.newton.modifiedNewtonJacUpdatePerStep
+    worker = every.stepper.worker
+    every.advance(every.state.t + 1e-3, Inputs())  # (re)starts the suspended run
+    worker.next_jacobian = every.state.t + 0.75e-3  # the second 0.5 ms step, the interval's last, asks for one
+    every.advance(every.state.t + 1e-3, Inputs())
+    assert worker.jacobian_requested and every.stepper.solver.newton.modifiedNewtonJacUpdatePerStep
+    every.stepper.pause()
+    assert not worker.jacobian_requested and not every.stepper.solver.newton.modifiedNewtonJacUpdatePerStep
 
 
 def test_jacobian_period_is_checked_and_yields_to_a_jacobian_per_step(free_drift):

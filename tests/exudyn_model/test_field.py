@@ -1,5 +1,5 @@
 """The Exudyn engine's tidal field (exudyn_model/field.py) and how it is held over a control
-period (`SteppingMixin._set_inputs`, docs/exudyn.md §5 item 5).
+period (`Stepper.set_inputs`, docs/exudyn.md §5 item 5).
 
 A held force is right when it delivers the period's impulse: its value must be the mean of
 the exact field over the period.  Along the period's motion (every coordinate moving at
@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from exudyn_model.engine import ExudynEngine
+from exudyn_model.state import base_mass, mass_flow, system_mass
 from rsmcheck.core.cases import load_case
 from rsmcheck.core.engine import Inputs
 
@@ -37,18 +38,19 @@ def drifting():
 def _mean_field(eng, span: float) -> np.ndarray:
     """The mean over [t, t + span] of the exact tidal forces along the straight-line motion
     of the coordinates and O's Kepler motion to second order (r_O + s v_O + ½ s² g)."""
-    q, v = eng._qv()
+    q, v = eng.coordinates()
     mu = eng.params.orbit.mu
-    g_O = -mu * eng.r_O / np.linalg.norm(eng.r_O) ** 3
-    return sum(w * eng._tidal_forces(q, v, s, eng.r_O + s * eng.v_O + 0.5 * s * s * g_O, eng._mass_base())
+    g_O = -mu * eng.state.r_O / np.linalg.norm(eng.state.r_O) ** 3
+    r_O, v_O = eng.state.r_O, eng.state.v_O
+    return sum(w * eng.field_forces.tidal_forces(q, v, s, r_O + s * v_O + 0.5 * s * s * g_O, base_mass(eng.params, eng.state))
                for s, w in zip(span * _XS, _WS))
 
 
 def _held(eng, span: float) -> np.ndarray:
-    """The tidal forces `_set_inputs` holds for a period of `span` (on a copy of the
+    """The tidal forces `Stepper.set_inputs` holds for a period of `span` (on a copy of the
     engine's thrust-inertia holder: the engine's own is left alone)."""
-    holder = copy.copy(eng._thrust_inertia)
-    eng._set_inputs((np.zeros(6), 0.0, 0.0), holder, span)
+    holder = copy.copy(eng.field_forces.thrust_inertia)
+    eng.stepper.set_inputs((np.zeros(6), 0.0, 0.0), holder, span)
     return holder.q_held
 
 
@@ -104,14 +106,14 @@ def test_a_period_held_thrust_acceleration_is_the_rocket_equation_s_mean():
     eng = ExudynEngine(case)
     a = case.params.actuators
     thrust, span = a.thrust, 5e-3
-    m_sys = eng._com(eng._qv()[0])[1]
-    m_base = eng._mass_base()
-    holder = copy.copy(eng._thrust_inertia)
-    eng._set_inputs((np.zeros(6), 0.0, thrust), holder, span)
+    m_sys = eng.observer.com(eng.coordinates()[0])[1]
+    m_base = base_mass(eng.params, eng.state)
+    holder = copy.copy(eng.field_forces.thrust_inertia)
+    eng.stepper.set_inputs((np.zeros(6), 0.0, thrust), holder, span)
     dm = thrust / (a.isp * a.g0) * span
     rocket = -a.isp * a.g0 * np.log1p(-dm / m_sys) / span
     assert holder.accel == pytest.approx(rocket, rel=1e-13)
-    assert eng.mbs.GetObjectParameter(eng.base, "mass") == pytest.approx(m_base - 0.5 * dm, rel=1e-15)
+    assert eng.mbs.GetObjectParameter(eng.model.base, "mass") == pytest.approx(m_base - 0.5 * dm, rel=1e-15)
 
 
 def test_compiled_field_equals_the_dense_quadrature(drifting):
@@ -123,23 +125,24 @@ def test_compiled_field_equals_the_dense_quadrature(drifting):
     from exudyn_model.field import tidal
 
     eng = drifting
-    q, v = eng._qv()
+    q, v = eng.coordinates()
     rng = np.random.default_rng(3)
     q = q + rng.normal(0.0, 1e-3, q.shape)  # every coordinate off its rest value
     v = v + rng.normal(0.0, 1e-2, v.shape)
     s = 0.37e-3
     x = q + s * v
-    m_base = eng._mass_base()
-    got = eng._tidal_forces(q, v, s, eng.r_O, m_base)
-    _, ws, D = eng.mesh.sample(4)
+    m_base = base_mass(eng.params, eng.state)
+    got = eng.field_forces.tidal_forces(q, v, s, eng.state.r_O, m_base)
+    _, ws, D = eng.model.mesh.sample(4)
     mu = eng.params.orbit.mu
-    assert len(eng._flex_coords) == 6
-    for coords, places in zip(eng._flex_coords, eng._carrier_flex):
+    assert len(eng.field_forces.flex_coords) == 6
+    for coords, places in zip(eng.field_forces.flex_coords, eng.field_forces.carrier_flex):
         points = (D @ x[coords]).reshape(-1, 2)
-        dense = ((eng.params.link.rho_a * ws)[:, None] * tidal(mu, eng.r_O, points)).reshape(-1) @ D
+        dense = ((eng.params.link.rho_a * ws)[:, None] * tidal(mu, eng.state.r_O, points)).reshape(-1) @ D
         assert np.abs(got[places] - dense).max() <= 1e-12 * np.abs(dense).max(), np.abs(got[places] - dense).max()
-    for coords, places, m in zip(eng._field_points, eng._carrier_points, (m_base, eng.params.target.mass)):
-        dense = m * tidal(mu, eng.r_O, x[coords])
+    ff = eng.field_forces
+    for coords, places, m in zip(ff.points, ff.carrier_points, (m_base, eng.params.target.mass)):
+        dense = m * tidal(mu, eng.state.r_O, x[coords])
         assert np.abs(got[places] - dense).max() <= 1e-12 * np.abs(dense).max(), (got[places], dense)
     # the places between them (the base's and the target's rotation) take no tidal force here
     assert got[2] == 0.0 and got[5] == 0.0
@@ -147,24 +150,24 @@ def test_compiled_field_equals_the_dense_quadrature(drifting):
 
 def test_the_stored_mass_matrix_follows_the_burning_base(monkeypatch):
     """The solver keeps one mass matrix (`reuseConstantMassMatrix`); the base's mass, which
-    the thrust burns down at every control sample, reaches it through `_set_base_mass`.  A
+    the thrust burns down at every control sample, reaches it through `Stepper.set_base_mass`.  A
     burn with output samples (whose reactions hold and restore the base mass) must equal, to
     the last bit, the burn of a solver that recomputes the mass matrix at every Newton
-    residual.  Without the recomputation in `_set_base_mass` the stored matrix keeps the
+    residual.  Without the recomputation in `Stepper.set_base_mass` the stored matrix keeps the
     base's mass at build and the runs part (the base pose by 9.6e-10 after 50 ms)."""
-    from exudyn_model.build import BuildMixin
+    from exudyn_model import stepper
     from rsmcheck.driver.runner import run
 
     case = load_case("thrust_burn").variant(True)
     stored = run(ExudynEngine(case), case, 0.05)
-    settings = BuildMixin._settings
+    settings = stepper.simulation_settings
 
-    def recomputed(self):
-        s = settings(self)
+    def recomputed(options):
+        s = settings(options)
         s.timeIntegration.reuseConstantMassMatrix = False
         return s
 
-    monkeypatch.setattr(BuildMixin, "_settings", recomputed)
+    monkeypatch.setattr(stepper, "simulation_settings", recomputed)
     fresh = run(ExudynEngine(case), case, 0.05)
     assert fresh.observables["system_mass"][-1] < fresh.observables["system_mass"][0]  # it burns
     for name, values in fresh.observables.items():
@@ -182,13 +185,14 @@ def test_the_thrust_inertia_runs_at_every_step_only_while_there_is_thrust():
     for k, f in enumerate((0.0, 0.0, thrust, thrust, 0.0, 0.0)):
         eng.advance((k + 1) * 1e-3, Inputs(thrust=f))
         assert (eng.mbs.GetPreStepUserFunction() != 0) == (f != 0.0), k
-        a_O = eng._thrust_inertia.mean_acceleration(1e-3)
+        a_O = eng.field_forces.thrust_inertia.mean_acceleration(1e-3)
         if f == 0.0:
             assert np.all(a_O == 0.0)
         else:
             # T/m at the interval's middle, along θ_B at its end (the base turns by ~1e-9 rad
             # within the interval: hence the 1e-8 of the magnitude in the direction)
-            theta_B = eng._thrust_inertia.theta_ref + eng._qv()[0][eng.i_base[2]] - eng.q_ref[eng.i_base[2]]
-            m_mid = eng._system_mass() + 0.5 * 1e-3 * eng._mass_flow(f)
+            i_thB = eng.model.index.i_base[2]
+            theta_B = eng.field_forces.thrust_inertia.theta_ref + eng.coordinates()[0][i_thB] - eng.model.index.q_ref[i_thB]
+            m_mid = system_mass(eng.params, eng.state) + 0.5 * 1e-3 * mass_flow(eng.params, f)
             expected = f / m_mid * np.array([math.cos(theta_B), math.sin(theta_B)])
             assert np.allclose(a_O, expected, rtol=1e-12, atol=1e-8 * f / m_mid), (a_O, expected)

@@ -19,7 +19,6 @@ import math
 import numpy as np
 import pytest
 
-from exudyn_model import reactions
 from exudyn_model.build import exu
 from exudyn_model.engine import ExudynEngine
 from exudyn_model.reactions import ConstraintForces
@@ -187,8 +186,8 @@ def _squeeze_inputs(case):
 
 
 def _native(eng):
-    return np.concatenate([np.asarray(eng.mbs.GetObjectOutput(j, FORCE))[:2] * eng.grasp_on[k]
-                           for k, j in enumerate(eng.grasp_joints)])
+    return np.concatenate([np.asarray(eng.mbs.GetObjectOutput(j, FORCE))[:2] * eng.state.grasp_on[k]
+                           for k, j in enumerate(eng.model.grasp_joints)])
 
 
 def _series(case, periods, **options):
@@ -199,7 +198,7 @@ def _series(case, periods, **options):
     for k in range(1, periods + 1):
         eng.advance(k * case.solver.control_period, u)
         nat.append(_native(eng))
-        idx.append(reactions.grasp_forces(eng, u))
+        idx.append(eng.observer.grasp_forces(u))
     return np.array(nat), np.array(idx)
 
 
@@ -229,13 +228,13 @@ def test_evaluation_leaves_the_integrator_alone(squeeze):
         a.advance(k * 1e-3, u)
         b.advance(k * 1e-3, u)
         before = _states(b.mbs)
-        loads = [b.mbs.GetLoadParameter(ld, "loadVector") for ld in (b.base_torque_load, b.thrust_load)]
-        reactions.grasp_forces(b, Inputs(tau_m=u.tau_m, tau_B=3.0))  # a different held input
+        loads = [b.mbs.GetLoadParameter(ld, "loadVector") for ld in (b.model.base_torque_load, b.model.thrust_load)]
+        b.observer.grasp_forces(Inputs(tau_m=u.tau_m, tau_B=3.0))  # a different held input
         after = _states(b.mbs)
         assert all(np.array_equal(x, y) for x, y in zip(before, after)), k
         assert all(np.array_equal(x, b.mbs.GetLoadParameter(ld, "loadVector"))
-                   for x, ld in zip(loads, (b.base_torque_load, b.thrust_load)))
-    assert np.array_equal(np.concatenate(a._qv()), np.concatenate(b._qv()))
+                   for x, ld in zip(loads, (b.model.base_torque_load, b.model.thrust_load)))
+    assert np.array_equal(np.concatenate(a.coordinates()), np.concatenate(b.coordinates()))
 
 
 def test_rigid_matches_native_at_the_default_step(squeeze):
@@ -274,10 +273,10 @@ def test_release_rigid():
     class Probe(ExudynEngine):
         def observe(self, inputs):
             out = super().observe(inputs)
-            cf = reactions.for_engine(self)
+            cf = self.constraint_forces
             lam = cf.multipliers()
-            rows = [lam[self.mbs.systemData.GetObjectLTGAE(j)] for j in self.grasp_joints]
-            self.rec.append((self.t, self.grasp_on.copy(), _native(self), reactions.grasp_forces(self, inputs), rows))
+            rows = [lam[self.mbs.systemData.GetObjectLTGAE(j)] for j in self.model.grasp_joints]
+            self.rec.append((self.state.t, self.state.grasp_on.copy(), _native(self), self.observer.grasp_forces(inputs), rows))
             return out
 
     eng = Probe(case, rigid=True, substeps=2)
@@ -295,7 +294,7 @@ def test_release_rigid():
     assert np.all(idx[after, 2:] == 0.0) and all(np.all(r[4][1] == 0.0) for r, a in zip(eng.rec, after) if a)
     assert np.abs(idx[after, :2]).max() > 1.0  # grasp 1 still loaded
     fresh = ConstraintForces(eng.mbs).multipliers()
-    kept = reactions.for_engine(eng).multipliers()
+    kept = eng.constraint_forces.multipliers()
     assert np.abs(kept - fresh).max() <= 1e-13 * np.abs(fresh).max()
 
 
@@ -326,13 +325,13 @@ def test_held_inputs_apply_the_coming_period():
     mbs = eng.mbs
 
     def params():
-        return ([mbs.GetLoadParameter(ld, "loadVector") for ld in (eng.base_torque_load, eng.thrust_load)]
-                + [mbs.GetObjectParameter(eng.carrier, "forceVector"), mbs.GetObjectParameter(eng.base, "mass")])
+        return ([mbs.GetLoadParameter(ld, "loadVector") for ld in (eng.model.base_torque_load, eng.model.thrust_load)]
+                + [mbs.GetObjectParameter(eng.model.carrier, "forceVector"), mbs.GetObjectParameter(eng.model.base, "mass")])
 
     before, states = params(), _states(mbs)
-    left = reactions.grasp_forces(eng)  # the loads advance() set for `on`
-    right_on = reactions.grasp_forces(eng, on)
-    right_off = reactions.grasp_forces(eng, off)
+    left = eng.observer.grasp_forces()  # the loads advance() set for `on`
+    right_on = eng.observer.grasp_forces(on)
+    right_off = eng.observer.grasp_forces(off)
     assert all(np.array_equal(x, y) for x, y in zip(before, params()))
     assert all(np.array_equal(x, y) for x, y in zip(states, _states(mbs)))
     scale = np.abs(left).max()
@@ -343,7 +342,7 @@ def test_held_inputs_apply_the_coming_period():
 
 def test_the_mbs_carries_the_held_thrust_when_advance_skips_an_unchanged_one():
     """advance() sets the thrust load only when the thrust differs from the held one, to
-    the sign of zero (`_set_inputs`' previous): across an evaluation with other inputs
+    the sign of zero (`Stepper.set_inputs`' previous): across an evaluation with other inputs
     (`held_inputs` sets and restores the loads) and across ±0, the mbs carries the held
     thrust bit for bit at every period."""
     case = load_case("thrust_burn")
@@ -351,7 +350,7 @@ def test_the_mbs_carries_the_held_thrust_when_advance_skips_an_unchanged_one():
     thrust = case.params.actuators.thrust
     mbs = eng.mbs
     for k, value in enumerate([thrust, thrust, thrust, 0.0, -0.0, -0.0, 0.0, thrust], start=1):
-        reactions.grasp_forces(eng, Inputs(thrust=0.5 * thrust))
+        eng.observer.grasp_forces(Inputs(thrust=0.5 * thrust))
         eng.advance(k * 1e-3, Inputs(thrust=value))
-        load = mbs.GetLoadParameter(eng.thrust_load, "loadVector")
+        load = mbs.GetLoadParameter(eng.model.thrust_load, "loadVector")
         assert np.asarray(load).tobytes() == np.array([value, 0.0, 0.0]).tobytes(), (k, value, load)
