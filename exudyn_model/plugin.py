@@ -67,6 +67,12 @@ class ExudynPlugin:
 
         return links.link_frequencies(params, basis, options.get("n_elements") or links.N_ELEMENTS_DEFAULT, n)
 
+    def option_default(self, key):
+        """The engine's default of constructor option `key` (e.g. "substeps")."""
+        from exudyn_model import engine
+
+        return {"substeps": engine.SUBSTEPS_DEFAULT}[key]
+
     def rhs_timing(self, case, n=2000, **options):
         from exudyn_model.stepping import rhs_timing
 

@@ -19,7 +19,7 @@ from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.orchestration import bench, compare, gate
 from rsmcheck.orchestration.chain import run_case
-from rsmcheck.core.plugins import available, engine_names, plugin, plugins, require, with_capability
+from rsmcheck.core.plugins import available, engine_names, plugin, plugins, require
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
 

@@ -1,29 +1,28 @@
 """The layers hold: the import graph of the project's own modules, read with `ast` from the
-source tree (nothing is imported), has no cycle among module-level imports and no import
-that goes up a layer; the engines stay independent of each other.
+source tree (nothing is imported), has no cycle (imports inside functions included) and no
+import that goes up a layer; the engines stay independent of each other, and nothing
+outside them imports or names one.
 
-Layers, lowest first (README, Layout):
+Layers, lowest first, each a folder (README, Layout):
 
-* floor — what every part reads: errors, parameters, the observable schema, run files,
-  the engine protocol, orbit, trajectories, the case model and loader, plane geometry,
-  analytic beam frequencies;
-* driver — shared by every engine: initial conditions, controllers, the runner;
-* engines — reference_model, exudyn_model, pinocchio_check (independent of each other:
-  only pinocchio_check's comparison module may read the reference model, which it checks);
-* orchestration — the folder rsmcheck/orchestration/, every module in it: the engine
-  factory, chaining, comparison, collection, the gate, studies, the benchmark,
-  eigenfrequencies, closed-loop analysis, fault injection;
+* floor — rsmcheck/core/: errors, parameters, the observable schema, run files, the engine
+  protocol and the plug-in registry, orbit, trajectories, the case model and loader, plane
+  geometry, analytic beam frequencies;
+* driver — rsmcheck/driver/, shared by every engine: initial conditions, controllers, the
+  runner;
+* engines — the plug-in packages reference_model, exudyn_model, pinocchio_check
+  (independent of each other: only pinocchio_check's comparison module may read the
+  reference model, which it checks);
+* orchestration — rsmcheck/orchestration/: chaining, comparison, collection, the gate,
+  studies, the benchmark, eigenfrequencies, closed-loop analysis, fault injection; it
+  reaches the engines through the registry only;
 * report — rsmcheck.report (the folder report/), rendering what orchestration stored;
-* entry — the command line, which dispatches to all of the above (`rsmcheck report`
-  included).
+* entry — the command line, which dispatches to all of the above.
 
-An import inside a function (deferred: it runs when the function is called) still counts
-for the layers.  Imports sit at the top of modules: outside the engine packages the only
-deferred imports are of the engine packages (heavy and optional: Exudyn, numba, Pinocchio)
-and the few of the command line listed in DEFERRED_ALLOWED (measured start-up cost); inside
-the engines, a cycle through a deferred import is listed (`python -m pytest -s`) but is not a
-failure.  Every module of the tree must be given a layer, so that a new module is
-placed on purpose (a module put in rsmcheck/orchestration/ is placed by its folder).
+An import inside a function (deferred: it runs when the function is called) counts for
+the layers and the cycles.  Outside the engine packages the only deferred imports are the
+few of the command line listed in DEFERRED_ALLOWED (measured start-up cost).  Every module
+of the tree must be given a layer, so that a new module is placed on purpose.
 """
 
 from __future__ import annotations
@@ -261,16 +260,52 @@ def test_no_import_cycle_among_module_level_imports():
     assert not found, "import cycles (module-level imports): " + "; ".join(" ↔ ".join(c) for c in found)
 
 
-def test_cycles_through_deferred_imports_are_listed():
-    """Not a failure: a function-level import that closes a cycle runs only when called.
-    Shown with `python -m pytest -s`."""
+def test_no_import_cycle_through_deferred_imports():
+    """A function-level import that closes a cycle is a cycle too: it runs whenever the
+    function is called, and it hides which module depends on which."""
     modules, edges = import_graph()
-    module_level = cycles(modules, [e for e in edges if not e.deferred])
-    deferred = [c for c in cycles(modules, edges) if c not in module_level]
-    for c in deferred:
+    found = cycles(modules, edges)
+    lines = []
+    for c in found:
         closing = [f"{e.source}:{e.line} → {e.target}" for e in edges
                    if e.deferred and e.source in c and e.target in c]
-        print(f"cycle through deferred imports: {' ↔ '.join(c)} (closed by {', '.join(closing)})")
+        lines.append(f"{' ↔ '.join(c)} (deferred: {', '.join(closing) or 'none'})")
+    assert not found, "import cycles:\n" + "\n".join(lines)
+
+
+def test_no_module_outside_the_engines_imports_or_names_one():
+    """The driver, the orchestration, the report and the command line reach the engines only
+    through the plug-in registry (rsmcheck.core.plugins): none imports an engine package or
+    its library, and no string in their code (docstrings aside) is a registered engine's
+    name; the engines a cross-check compares by default are data (rsmcheck/core/defaults.toml)."""
+    from rsmcheck.core.plugins import plugins
+
+    names = set(plugins())
+    packages = {type(p).__module__.split(".")[0] for p in plugins().values()} | set(ENGINE_LIBRARIES)
+    assert {"reference", "exudyn"} <= names, f"the registry lists {sorted(names)}: is the project installed?"
+    bad = []
+    for module, path in project_modules().items():
+        if module.split(".")[0] in packages:
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        docstrings = {id(n.body[0].value) for n in ast.walk(tree)
+                      if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                      and n.body and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in names \
+                    and id(node) not in docstrings:
+                bad.append(f"{module}:{node.lineno} names the engine {node.value!r}")
+            imported = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                        else [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level else [])
+            bad += [f"{module}:{node.lineno} imports {n}" for n in imported if n.split(".")[0] in packages]
+    assert not bad, "\n".join(bad)
+
+
+def test_no_source_file_over_700_lines():
+    """Small modules with one job: no file of the package or the engines over 700 lines."""
+    long = {m: n for m, path in project_modules().items()
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > 700}
+    assert not long, f"files over 700 lines: {long}"
 
 
 def test_imports_outside_the_engines_are_at_the_top():

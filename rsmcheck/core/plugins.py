@@ -27,16 +27,17 @@ from __future__ import annotations
 import importlib.util
 import os
 import tomllib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from importlib import metadata, resources
 from typing import Any, Callable, Mapping, Protocol, runtime_checkable
 
 from rsmcheck.core.errors import InputError
 
-# Annotations name `Case` (rsmcheck.core.cases, which imports this module), `Engine`
-# (rsmcheck.core.engine) and `StartState` (rsmcheck.driver.initial, a layer above): they
-# stay strings, never imported here.
+#: type names of the annotations: a case (rsmcheck.core.cases, which imports this module),
+#: an engine (rsmcheck.core.engine.Engine) and a start state (rsmcheck.driver.initial, a
+#: layer above): not imported here
+Case = Engine = StartState = Any
 
 #: the entry-point group engines register under
 GROUP = "rsmcheck.engines"

@@ -28,7 +28,8 @@ from typing import Callable
 
 import numpy as np
 
-from rsmcheck.core.cases import ArmCommand, ControllerSpec, Segment
+from rsmcheck.core.cases import ControllerSpec
+from rsmcheck.core.programme import ArmCommand, Segment
 from rsmcheck.core.engine import Inputs, Sensors
 from rsmcheck.core.geometry import arm_jacobian, arm_pins, rot
 from rsmcheck.core.params import Params

@@ -37,7 +37,7 @@ from typing import Any, Callable, Mapping, Sequence
 from rsmcheck.core.cases import Case, load_case, sibling_case
 from rsmcheck.core.errors import InputError, SimulationDiverged
 from rsmcheck.orchestration.chain import run_mission
-from rsmcheck.core.plugins import default_engines, make_engine, plugins
+from rsmcheck.core.plugins import make_engine, plugins
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import EngineRun, read_run, write_run
 

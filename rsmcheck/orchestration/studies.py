@@ -47,7 +47,7 @@ from rsmcheck.core.cases import OrbitSpec, load_case
 from rsmcheck.core.errors import exit_code
 from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.compare import SCALE_FLOORS, check_runs, compare_runs
-from rsmcheck.core.plugins import make_engine
+from rsmcheck.core.plugins import default_engines, make_engine, plugin, settings_of
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import read_run, write_json
 
@@ -57,6 +57,14 @@ FEATURE_CASES = ("free_drift", "flex_arm_step", "motor_step", "closed_squeeze", 
 OBSERVABLES = tuple(n for n in NAMES if n != "time")
 #: rigid links: these are identically zero in both engines (nothing to compare)
 RIGID_ZERO = ("link_deflection",)
+
+
+def pair() -> tuple[str, str]:
+    """The engines a study compares: the model under test (its tight runs are the
+    reference solution) and the independent engine whose step and mesh the study derives
+    (rsmcheck.core.plugins.default_engines)."""
+    first, second = default_engines()[:2]
+    return first, second
 
 
 def _run(engine: str, case, duration: float, **options):
@@ -92,24 +100,25 @@ def rigid_step_study(cases: Sequence[str] = FEATURE_CASES, substeps: Sequence[in
                      log=None, reference_rtol: float = REFERENCE_RTOL, check_rtol: float = CHECK_RTOL,
                      exudyn_options: dict | None = None) -> dict[str, Any]:
     """Relative differences (compare_runs) per case, observable and Exudyn step."""
+    first, second = pair()
     exudyn_options = dict(exudyn_options or {})
     doc: dict[str, Any] = {"study": "rigid equivalence vs generalized-alpha step", "short": short,
-                           "reference_rtol": reference_rtol, "check_rtol": check_rtol,
-                           "exudyn_options": exudyn_options,
+                           f"{first}_rtol": reference_rtol, "check_rtol": check_rtol,
+                           f"{second}_options": exudyn_options,
                            "metric": "max_t max_c |exudyn - reference| / max(max_t |reference|, floor)",
                            "scale_floors": SCALE_FLOORS, "cases": {}}
     for name in cases:
         case = load_case(name).variant(short)
         T = duration or case.duration
-        ref, w_ref = _run("reference", case, T, n_modes=0, rtol=reference_rtol)
-        coarse, _ = _run("reference", case, T, n_modes=0, rtol=check_rtol)
+        ref, w_ref = _run(first, case, T, n_modes=0, rtol=reference_rtol)
+        coarse, _ = _run(first, case, T, n_modes=0, rtol=check_rtol)
         entry = {"duration": T, "control_period": case.solver.control_period,
-                 "reference_wall_s": w_ref, "reference_range": _ranges(ref),
-                 "reference_self_error": {k: v["error"] for k, v in _errors(name, ref, coarse).items()},
+                 f"{first}_wall_s": w_ref, f"{first}_range": _ranges(ref),
+                 f"{first}_self_error": {k: v["error"] for k, v in _errors(name, ref, coarse).items()},
                  "steps": []}
         for s in substeps:
             opts = {"stepping": "continuous" if s < 16 else "period", **exudyn_options}
-            ex, w = _run("exudyn", case, T, rigid=True, substeps=s, **opts)
+            ex, w = _run(second, case, T, rigid=True, substeps=s, **opts)
             errs = _errors(name, ref, ex)
             entry["steps"].append({"substeps": s, "h": case.solver.control_period / s, "wall_s": w,
                                    "errors": {k: v["error"] for k, v in errs.items()},
@@ -156,23 +165,24 @@ def rigid_options(case: str) -> dict:
 def rigid_equivalence(cases: Sequence[str] = FEATURE_CASES, out: Path | None = None, log=None) -> dict[str, Any]:
     """Every observable of every feature case (short) in the rigid-equivalence configuration:
     relative error, scale (max of reference range and floor), reference range."""
+    first, second = pair()
     doc: dict[str, Any] = {"study": "rigid equivalence", "tolerance": RIGID_TOLERANCE,
-                           "reference_options": RIGID_REFERENCE, "exudyn_options": RIGID_EXUDYN,
+                           f"{first}_options": RIGID_REFERENCE, f"{second}_options": RIGID_EXUDYN,
                            "substeps": RIGID_SUBSTEPS, "scale_floors": SCALE_FLOORS, "cases": {}}
     for name in cases:
         case = load_case(name).variant(True)
-        ref, w_ref = _run("reference", case, case.duration, **RIGID_REFERENCE)
-        ex, w_ex = _run("exudyn", case, case.duration, **rigid_options(name))
+        ref, w_ref = _run(first, case, case.duration, **RIGID_REFERENCE)
+        ex, w_ex = _run(second, case, case.duration, **rigid_options(name))
         rows = compare_runs(name, ref, ex, {n: RIGID_TOLERANCE for n in OBSERVABLES})
         doc["cases"][name] = {
             "duration": case.duration, "substeps": RIGID_SUBSTEPS[name],
-            "exudyn_options": rigid_options(name), "reference_case_settings": case.reference.given(),
-            "h": case.solver.control_period / RIGID_SUBSTEPS[name], "wall_s": {"reference": w_ref, "exudyn": w_ex},
-            "observables": {r.observable: {"error": r.error, "scale": r.scale, "reference_range": _ranges(ref)[r.observable],
+            f"{second}_options": rigid_options(name), f"{first}_case_settings": settings_of(case, first).given(),
+            "h": case.solver.control_period / RIGID_SUBSTEPS[name], "wall_s": {first: w_ref, second: w_ex},
+            "observables": {r.observable: {"error": r.error, "scale": r.scale, f"{first}_range": _ranges(ref)[r.observable],
                                            "worst_time": r.worst_time, "pass": r.passed} for r in rows}}
         if log:
             bad = {r.observable: f"{r.error:.1e}" for r in rows if not r.passed}
-            log(f"{name} substeps={RIGID_SUBSTEPS[name]} wall exudyn {w_ex:.1f}s reference {w_ref:.1f}s; above 1e-5: {bad}")
+            log(f"{name} substeps={RIGID_SUBSTEPS[name]} wall {second} {w_ex:.1f}s {first} {w_ref:.1f}s; above 1e-5: {bad}")
         _write(out, doc)
     return doc
 
@@ -182,24 +192,23 @@ def convergence_study(case_name: str = "flex_arm_step", modes: Sequence[int] = (
                       duration: float | None = None, out: Path | None = None, log=None,
                       observables: Sequence[str] = OBSERVABLES) -> dict[str, Any]:
     """Relative differences per observable for every (reference modes, Exudyn elements)."""
-    from exudyn_model.engine import SUBSTEPS_DEFAULT  # engines are imported lazily: Exudyn is heavy and optional
-
+    first, second = pair()
     case = load_case(case_name).variant(short)
     T = duration or case.duration
-    sub = substeps or SUBSTEPS_DEFAULT
+    sub = substeps or plugin(second).option_default("substeps")
     doc: dict[str, Any] = {"study": "flexible convergence: reference modes x Exudyn elements",
                            "case": case_name, "short": short, "duration": T, "substeps": sub,
                            "h": case.solver.control_period / sub, "modes": list(modes), "elements": list(elements),
                            "metric": "max_t max_c |exudyn - reference| / max(max_t |reference|, floor)",
-                           "reference": {}, "exudyn": {}, "errors": {}}
+                           first: {}, second: {}, "errors": {}}
     refs, exus = {}, {}
     for n in modes:
-        refs[n], w = _run("reference", case, T, n_modes=n)
-        doc["reference"][str(n)] = {"wall_s": w, "range": _ranges(refs[n])}
+        refs[n], w = _run(first, case, T, n_modes=n)
+        doc[first][str(n)] = {"wall_s": w, "range": _ranges(refs[n])}
     for m in elements:
-        exus[m], w = _run("exudyn", case, T, n_elements=m, substeps=sub,
+        exus[m], w = _run(second, case, T, n_elements=m, substeps=sub,
                           stepping="continuous" if sub < 16 else "period")
-        doc["exudyn"][str(m)] = {"wall_s": w}
+        doc[second][str(m)] = {"wall_s": w}
         for n in modes:
             errs = _errors(case_name, refs[n], exus[m], observables)
             doc["errors"][f"{n},{m}"] = {k: v["error"] for k, v in errs.items()}
@@ -215,23 +224,24 @@ def refinement_study(case_name: str, modes: Sequence[int], exudyn: Sequence[tupl
     """The case's `[compare]` rows (error, tolerance) for every (reference modes, Exudyn
     (substeps, EA/EI)): the EA/EI of the Exudyn links replaces the case's
     `params.link.axial_to_bending` (the reference is axially rigid and ignores it)."""
+    first, second = pair()
     case = load_case(case_name).variant(short)
     doc: dict[str, Any] = {"study": "refinement: the case's [compare] rows, reference modes x Exudyn (substeps, EA/EI)",
                            "case": case_name, "short": short, "duration": case.duration,
                            "control_period": case.solver.control_period, "modes": list(modes),
-                           "exudyn": [{"substeps": s, "h": case.solver.control_period / s, "axial_to_bending": ea}
+                           second: [{"substeps": s, "h": case.solver.control_period / s, "axial_to_bending": ea}
                                       for s, ea in exudyn],
                            "tolerances": {c.observable: c.tolerance for c in case.compare},
-                           "reference_wall_s": {}, "exudyn_wall_s": {}, "errors": {}}
+                           f"{first}_wall_s": {}, f"{second}_wall_s": {}, "errors": {}}
     refs = {}
     for n in modes:
-        refs[n], doc["reference_wall_s"][str(n)] = _run("reference", case, case.duration, n_modes=n)
+        refs[n], doc[f"{first}_wall_s"][str(n)] = _run(first, case, case.duration, n_modes=n)
     for s, ea in exudyn:
         p = case.params
         params = replace(p, link=replace(p.link, axial_to_bending=ea))
-        exu, w = _run("exudyn", case, case.duration, substeps=s, params=params)
-        doc["exudyn_wall_s"][f"{s},{ea:g}"] = w
-        doc["exudyn_links"] = exu.solver["links"]  # the case's [exudyn] elements
+        exu, w = _run(second, case, case.duration, substeps=s, params=params)
+        doc[f"{second}_wall_s"][f"{s},{ea:g}"] = w
+        doc[f"{second}_links"] = exu.solver["links"]  # the case's [exudyn] elements
         for n in modes:
             rows = check_runs(case, refs[n], exu)
             doc["errors"][f"{n},{s},{ea:g}"] = {r.observable: r.error for r in rows}
@@ -256,6 +266,7 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
     with it the base tracks the retrograde direction, n = 1.06e-3 rad/s).  `with_runs`: a
     folder of run files of the short variants as they are (`rsmcheck check --short --out`),
     whose reference runs are used instead of running the phases with the orbit again."""
+    first, second = pair()
     doc: dict[str, Any] = {"study": "orbit: max_t |with orbit − without| of a phase's short variant, reference",
                            "observables": list(ORBIT_OBSERVABLES), "cases": {}}
     for name in cases:
@@ -265,10 +276,10 @@ def orbit_study(cases: Sequence[str] = MISSION_PHASES, out: Path | None = None, 
                        segments=tuple(replace(sg, base="hold" if sg.base == "retrograde" else sg.base)
                                       for sg in case.segments))
         if with_runs is not None:
-            with_orbit, w1 = read_run(Path(with_runs) / f"{name}.h5")[0]["reference"], None
+            with_orbit, w1 = read_run(Path(with_runs) / f"{name}.h5")[0][first], None
         else:
-            with_orbit, w1 = _run("reference", case, case.duration)
-        without, w2 = _run("reference", flat, flat.duration)
+            with_orbit, w1 = _run(first, case, case.duration)
+        without, w2 = _run(first, flat, flat.duration)
         row = {}
         for n in ORBIT_OBSERVABLES:
             a = np.asarray(with_orbit.observables[n], float)
@@ -301,13 +312,14 @@ def integrator_study(case_name: str, grid: Sequence[tuple[str, float]], out: Pat
     every observable of the case's `[compare]` table, x_tight from Dormand–Prince at rtol
     1e-10 (`TIGHT`).  Wall times are one run each, on whatever the machine is doing: read
     them as ratios within one study."""
+    first, _ = pair()
     case = load_case(case_name).variant(True)
     rows = [c.observable for c in case.compare]
-    tight, w = _run("reference", case, case.duration, integrator=TIGHT[0], rtol=TIGHT[1])
+    tight, w = _run(first, case, case.duration, integrator=TIGHT[0], rtol=TIGHT[1])
     doc: dict[str, Any] = {"study": "integrators: the case's [compare] rows against Dormand–Prince at rtol 1e-10",
                            "case": case_name, "duration": case.duration, "tight_wall_s": w, "runs": []}
     for integrator, rtol in grid:
-        r, w = _run("reference", case, case.duration, integrator=integrator, rtol=rtol)
+        r, w = _run(first, case, case.duration, integrator=integrator, rtol=rtol)
         n = r.solver["samples"]
         errors = {o: float(np.max(np.abs(np.asarray(r.observables[o], float)
                                          - np.asarray(tight.observables[o], float)))) for o in rows}

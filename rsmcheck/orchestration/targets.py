@@ -24,7 +24,9 @@ work on that loop can meet the target, only fewer or cheaper integration steps c
 from __future__ import annotations
 
 import math
+import tomllib
 from dataclasses import dataclass
+from importlib import resources
 from typing import Any, Callable, Sequence
 
 
@@ -97,32 +99,45 @@ def _mission_integrator(engine: str) -> Callable[[dict], float | None]:
     return floor
 
 
-def _slowest_phase(doc: dict) -> tuple[float | None, str]:
-    run = _full_mission(doc, "reference")
-    phases = [p for p in (run or {}).get("phases") or [] if p.get("wall_s")]
-    if not phases:
-        return None, ""
-    speed = {p["phase"]: p["sim_s"] / p["wall_s"] for p in phases}
-    slowest = min(speed, key=speed.get)
-    return speed[slowest], "slowest " + slowest + "; " + ", ".join(f"{p} {s:.1f}" for p, s in speed.items())
+def _slowest_phase(engine: str) -> Callable[[dict], tuple[float | None, str]]:
+    def read(doc: dict) -> tuple[float | None, str]:
+        run = _full_mission(doc, engine)
+        phases = [p for p in (run or {}).get("phases") or [] if p.get("wall_s")]
+        if not phases:
+            return None, ""
+        speed = {p["phase"]: p["sim_s"] / p["wall_s"] for p in phases}
+        slowest = min(speed, key=speed.get)
+        return speed[slowest], "slowest " + slowest + "; " + ", ".join(f"{p} {s:.1f}" for p, s in speed.items())
+    return read
 
 
-def _rigid_rhs(doc: dict) -> tuple[float | None, str]:
-    rhs = doc.get("rhs_us") or {}
-    ref, aba = rhs.get("reference_rigid_compiled"), rhs.get("pinocchio_aba")
-    if not (ref and aba and math.isfinite(ref) and math.isfinite(aba)):
-        return None, ""
-    return ref / aba, f"{ref:.1f} µs against {aba:.1f} µs"
+def _rhs_ratio(numerator: str, denominator: str) -> Callable[[dict], tuple[float | None, str]]:
+    def read(doc: dict) -> tuple[float | None, str]:
+        rhs = doc.get("rhs_us") or {}
+        num, den = rhs.get(numerator), rhs.get(denominator)
+        if not (num and den and math.isfinite(num) and math.isfinite(den)):
+            return None, ""
+        return num / den, f"{num:.1f} µs against {den:.1f} µs"
+    return read
 
 
-TARGETS = (
-    SpeedTarget("reference_mission", "reference: full mission", 120.0, "s", True, _mission_wall("reference"),
-                _mission_integrator("reference")),
-    SpeedTarget("reference_phases", "reference: each mission phase", 20.0, "× real time", False, _slowest_phase),
-    SpeedTarget("exudyn_mission", "Exudyn: full mission", 1200.0, "s", True, _mission_wall("exudyn"),
-                _mission_integrator("exudyn")),
-    SpeedTarget("rigid_rhs", "reference rigid RHS / Pinocchio ABA", 3.0, "ABA calls", True, _rigid_rhs),
-)
+def _target(t: dict[str, Any]) -> SpeedTarget:
+    """One [[target]] of speed_targets.toml as a `SpeedTarget`."""
+    kind = t["reading"]
+    if kind == "mission_wall":
+        read, floor = _mission_wall(t["engine"]), _mission_integrator(t["engine"])
+    elif kind == "slowest_phase":
+        read, floor = _slowest_phase(t["engine"]), None
+    elif kind == "rhs_ratio":
+        read, floor = _rhs_ratio(t["numerator"], t["denominator"]), None
+    else:
+        raise ValueError(f"speed_targets.toml: target {t['key']}: unknown reading {kind!r}")
+    return SpeedTarget(t["key"], t["text"], float(t["bound"]), t["unit"], bool(t["upper"]), read, floor)
+
+
+#: the targets, from the package's speed_targets.toml (data: it names the engines it times)
+TARGETS = tuple(_target(t) for t in tomllib.loads(
+    resources.files("rsmcheck.orchestration").joinpath("speed_targets.toml").read_text(encoding="utf-8"))["target"])
 
 
 def read_targets(doc: dict[str, Any]) -> list[TargetReading]:

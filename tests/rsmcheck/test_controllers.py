@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from rsmcheck.core.cases import ArmGains, BaseGains, ControllerSpec, Segment, TargetCommand
+from rsmcheck.core.cases import ArmGains, BaseGains, ControllerSpec
+from rsmcheck.core.programme import Segment, TargetCommand
 from rsmcheck.driver.controllers import (
     ArmModel,
     ComAlignment,
@@ -183,7 +184,7 @@ def test_thrust_segment_and_freeze():
     s0 = sensors()
     ctl.start(s0)
     q = np.radians([61.0, -120.0, 60.0, -60.0, 120.0, -60.0])
-    from rsmcheck.core.cases import ArmCommand
+    from rsmcheck.core.programme import ArmCommand
 
     ctl.enter(Segment(name="burn", duration=10.0, thrust=True, arm1=ArmCommand(mode="freeze"),
                       arm2=ArmCommand(mode="hold")), sensors(q=q))

@@ -21,7 +21,8 @@ from scipy.linalg import expm
 from reference_model.engine import ReferenceEngine
 from reference_model.model_arrays import N_INPUTS
 from reference_model.ode import rhs
-from rsmcheck.core.cases import Segment, load_case
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.programme import Segment
 from rsmcheck.core.cases import at_rest, without_orbit
 from rsmcheck.driver.controllers import ProgrammeController
 
