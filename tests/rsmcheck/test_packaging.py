@@ -116,6 +116,33 @@ def test_nothing_outside_the_engines_imports_an_engine_library(installed, tmp_pa
     assert "free_drift" in proc.stdout
 
 
+def test_the_base_install_names_the_extra_an_engine_needs(installed, tmp_path):
+    """With the base install alone (Exudyn and Pinocchio not importable), asking for Exudyn
+    or Pinocchio is one line naming the pip extra that brings it, exit 2, nothing written;
+    `rsmcheck engines` says which extra each missing engine needs."""
+    code = ("import sys\n"
+            "for name in ('exudyn', 'pinocchio', 'greenlet'):\n"
+            "    sys.modules[name] = None  # import raises ImportError, find_spec finds nothing\n"
+            "from rsmcheck.cli import main\n"
+            "raise SystemExit(main(sys.argv[1:]))\n")
+    env = outside_env(installed)
+
+    def rsmcheck(*argv):
+        return subprocess.run([sys.executable, "-c", code, *argv], cwd=tmp_path, env=env, capture_output=True,
+                              text=True, timeout=300)
+
+    out = tmp_path / "out"
+    run = rsmcheck("run", "free_drift", "--short", "--engine", "exudyn", "--out", str(out))
+    assert run.returncode == 2 and run.stderr.count("\n") == 1 and "Traceback" not in run.stderr, run.stderr
+    assert "pip install 'rsmcheck[exudyn]'" in run.stderr and not out.exists()
+    pin = rsmcheck("pinocchio", "--json")
+    assert pin.returncode == 2 and "pip install 'rsmcheck[pinocchio]'" in pin.stderr, pin.stderr
+    listing = rsmcheck("engines")
+    assert listing.returncode == 0, listing.stderr
+    assert "NOT INSTALLED: pip install 'rsmcheck[exudyn]'" in listing.stdout
+    assert "NOT INSTALLED: pip install 'rsmcheck[pinocchio]'" in listing.stdout
+
+
 def installed_command(target: Path) -> list[str]:
     script = target / "bin" / "rsmcheck"
     return [str(script)] if script.is_file() else [sys.executable, "-m", "rsmcheck.cli"]
