@@ -38,7 +38,7 @@ import numpy as np
 
 from rsmcheck.core.cases import Case, list_cases, load_case, sibling_case
 from rsmcheck.orchestration.compare import case_rows, check_runs, engine_pairs
-from rsmcheck.core.plugins import (available, default_engines, given_settings, plugin, plugin_distributions, plugins,
+from rsmcheck.core.plugins import (available, default_engines, given_settings, plugin, plugin_distributions,
                                    with_capability)
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.modes import modes_report
@@ -163,10 +163,12 @@ def phase_runs(mission: Case, short: bool, run: EngineRun) -> list[tuple[Case, f
     return out
 
 
-def case_checks(case: Case, short: bool, runs: dict[str, EngineRun]) -> list[dict[str, Any]]:
+def case_checks(case: Case, short: bool, runs: dict[str, EngineRun],
+                engines: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """The rows of `rsmcheck check --json` for one case, from its stored runs: the same
-    function (`compare.case_rows`) on the same runs (`runs.read_stored`)."""
-    return [r.as_dict() for r in case_rows(case, short, runs)]
+    function (`compare.case_rows`) on the same runs (`runs.read_stored`), the first of
+    `engines` (default: the default engines) against each other."""
+    return [r.as_dict() for r in case_rows(case, short, runs, engines)]
 
 
 def phase_specs(mission: Case, short: bool, phase: Case) -> tuple:
@@ -176,11 +178,12 @@ def phase_specs(mission: Case, short: bool, phase: Case) -> tuple:
     return tuple(replaced.get(s.observable, s) for s in phase.compare)
 
 
-def mission_checks(mission: Case, short: bool, runs: dict[str, EngineRun]) -> list[dict[str, Any]]:
+def mission_checks(mission: Case, short: bool, runs: dict[str, EngineRun],
+                   engines: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """Each phase of the chained mission checked by its own tolerances plus the difference
     the engines carry into it (`rsmcheck.orchestration.compare.check_runs(chained=True)`); rows named
     "mission/PHASE"."""
-    engines = [e for e in plugins() if e in runs]
+    engines = [e for e in (engines or default_engines()) if e in runs]
     if len(engines) < 2:
         return []
     rows = []
@@ -237,9 +240,9 @@ def verdict(res: Collected, digest: str) -> dict[str, Any]:
         if not runs:
             continue
         if case.phases:
-            mission += mission_checks(case, res.short, runs)
+            mission += mission_checks(case, res.short, runs, res.engines)
             continue
-        checks += case_checks(case, res.short, runs)
+        checks += case_checks(case, res.short, runs, res.engines)
         if res.short:
             gates += gate_rows(case, runs)
     rigid = {}
