@@ -43,6 +43,9 @@ Case = Engine = StartState = Any
 GROUP = "rsmcheck.engines"
 #: the environment variable that overrides the default engines of a cross-check
 ENGINES_ENV = "RSMCHECK_ENGINES"
+#: what every plug-in must have (`EnginePlugin`); the registry refuses one that lacks any
+REQUIRED = ("name", "label", "style", "simulates", "requires", "extra", "tables", "solver_keys", "work_counters",
+            "engine_options", "parse_settings", "make", "step_perturbed", "faults")
 
 
 @dataclass(frozen=True)
@@ -114,6 +117,8 @@ class EnginePlugin(Protocol):
     solver_keys: tuple[str, ...]
     #: the measures of a run's work, for the gate and the bench
     work_counters: tuple[WorkCounter, ...]
+    #: the constructor options `make` takes (`rsmcheck check --option NAME:KEY=VALUE`)
+    engine_options: tuple[str, ...]
 
     def parse_settings(self, tables: Mapping[str, Mapping[str, Any]], solver: Mapping[str, Any],
                        where: str, key: Callable[[str], str]) -> EngineSettings:
@@ -153,8 +158,7 @@ def plugins() -> dict[str, EnginePlugin]:
             obj = ep.load()
         except ImportError as exc:
             raise InputError(f"entry point {GROUP}", ep.name, f"its module does not import ({exc})") from None
-        missing = [a for a in ("name", "label", "style", "simulates", "requires", "extra", "tables",
-                               "solver_keys", "work_counters", "parse_settings", "make") if not hasattr(obj, a)]
+        missing = [a for a in REQUIRED if not hasattr(obj, a)]
         if missing:
             raise InputError(f"entry point {GROUP}", ep.name, f"{ep.value} lacks {', '.join(missing)}")
         if obj.name != ep.name:

@@ -1,0 +1,112 @@
+"""The plug-in registry (rsmcheck.core.plugins): what it finds through the entry points,
+the order, the default engines as one setting, and the one-line errors for a plug-in that
+is incomplete, misnamed or unknown."""
+
+from __future__ import annotations
+
+from importlib import metadata
+
+import pytest
+
+from rsmcheck.core import plugins as reg
+from rsmcheck.core.cases import load_case
+from rsmcheck.core.errors import InputError
+
+
+@pytest.fixture
+def fresh_registry():
+    """The registry read again (it is cached per process), and again after the test."""
+    reg.plugins.cache_clear()
+    yield
+    reg.plugins.cache_clear()
+
+
+def test_the_in_tree_plug_ins_are_registered_through_the_entry_points():
+    names = [ep.name for ep in metadata.entry_points(group=reg.GROUP)]
+    assert {"reference", "exudyn", "pinocchio"} <= set(names)
+    found = reg.plugins()
+    # the engines that simulate first, the default engines in their order, checkers last
+    assert list(found)[:2] == ["reference", "exudyn"] and list(found)[-1] == "pinocchio"
+    assert reg.simulators()[:2] == ("reference", "exudyn") and "pinocchio" not in reg.simulators()
+    assert reg.with_capability("rigid_checks") == ("pinocchio",)
+    for p in found.values():
+        assert all(hasattr(p, a) for a in reg.REQUIRED), p.name
+
+
+def test_the_default_engines_are_one_setting(monkeypatch):
+    monkeypatch.delenv(reg.ENGINES_ENV, raising=False)
+    assert reg.default_engines() == ("reference", "exudyn")
+    monkeypatch.setenv(reg.ENGINES_ENV, "exudyn, reference")
+    assert reg.default_engines() == ("exudyn", "reference")
+    monkeypatch.setenv(reg.ENGINES_ENV, "reference")
+    with pytest.raises(InputError, match="needs two engines"):
+        reg.default_engines()
+    monkeypatch.setenv(reg.ENGINES_ENV, "reference,warp")
+    with pytest.raises(InputError, match="no such engine 'warp'"):
+        reg.default_engines()
+
+
+def test_engine_names_from_the_command_line():
+    assert reg.engine_names("reference") == ["reference"]
+    assert reg.engine_names("all")[:2] == ["reference", "exudyn"]
+    with pytest.raises(InputError, match="registered: reference, exudyn"):
+        reg.engine_names("warp")
+    with pytest.raises(InputError, match="checks but does not simulate"):
+        reg.engine_names("reference,pinocchio")
+    with pytest.raises(InputError, match="twice"):
+        reg.engine_names("reference,reference")
+
+
+class _EntryPoint:
+    """An entry point as importlib.metadata gives it: a name, a value, `load()`."""
+
+    def __init__(self, name, obj):
+        self.name, self.value, self._obj = name, f"fake.module:{name}", obj
+
+    def load(self):
+        return self._obj
+
+
+def _complete(name):
+    """A plug-in object with every required attribute (values borrowed from the reference)."""
+    ref = reg.plugins()["reference"]
+    obj = type("Fake", (), {a: getattr(ref, a) for a in reg.REQUIRED})()
+    obj.name = name
+    obj.tables = ()
+    obj.solver_keys = ()
+    return obj
+
+
+def test_an_incomplete_or_misnamed_plug_in_is_refused_in_one_line(monkeypatch, fresh_registry):
+    incomplete, misnamed = _complete("half"), _complete("other")
+    del type(incomplete).step_perturbed, type(incomplete).faults
+    monkeypatch.setattr(reg.metadata, "entry_points", lambda group: [_EntryPoint("half", incomplete)])
+    reg.plugins.cache_clear()  # _complete read the real registry
+    with pytest.raises(InputError) as info:
+        reg.plugins()
+    assert "half" in str(info.value) and "lacks step_perturbed, faults" in str(info.value)
+
+    monkeypatch.setattr(reg.metadata, "entry_points", lambda group: [_EntryPoint("alias", misnamed)])
+    reg.plugins.cache_clear()
+    with pytest.raises(InputError, match="calls itself 'other'"):
+        reg.plugins()
+
+
+def test_two_plug_ins_cannot_own_one_table(monkeypatch, fresh_registry):
+    a, b = _complete("a"), _complete("b")
+    a.tables = b.tables = ("shared",)
+    monkeypatch.setattr(reg.metadata, "entry_points", lambda group: [_EntryPoint("a", a), _EntryPoint("b", b)])
+    reg.plugins.cache_clear()  # _complete read the real registry
+    with pytest.raises(InputError, match=r"table \[shared\] is owned by a too"):
+        reg.owned_tables()
+
+
+def test_each_engine_reads_its_own_settings_and_perturbs_its_own_tolerance():
+    case = load_case("p4_hohmann")
+    ref, exu = reg.settings_of(case, "reference"), reg.settings_of(case, "exudyn")
+    assert ref.rtol == 1e-7 and ref.quiet_integrator == "imex"  # [solver] rtol, [reference]
+    assert exu.newton_atol == 1e-4 and exu.newton_atol_scale is None  # [exudyn]
+    stepped = reg.step_perturbed_settings(case.engine_settings, 1.001)
+    assert stepped["reference"].rtol == pytest.approx(1.001e-7, rel=1e-15)
+    assert stepped["exudyn"].newton_atol_scale == pytest.approx(1.001, rel=1e-15)
+    assert stepped["exudyn"].newton_atol == exu.newton_atol  # the scale, not the setting
