@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from exudyn_model import settings
 from exudyn_model.faults import FAULTS
-from rsmcheck.core.plugins import LineStyle, WorkCounter
+from rsmcheck.core.plugins import LineStyle, WorkCounter, deferred
 
 
 class ExudynPlugin:
@@ -51,15 +51,10 @@ class ExudynPlugin:
     def faults(self):
         return FAULTS
 
-    def linear_plant(self, case, outputs, n_inputs=7, eps=1e-7, **options):
-        from exudyn_model.modes import linear_plant
-
-        return linear_plant(case, outputs, n_inputs, eps, **options)
-
-    def coupled_frequencies(self, case, n=6, f_min=1.0, **options):
-        from exudyn_model.modes import coupled_frequencies
-
-        return coupled_frequencies(case, n, f_min, **options)
+    # the engine's own linearisation and timing, imported when called
+    linear_plant = deferred("exudyn_model.modes", "linear_plant")
+    coupled_frequencies = deferred("exudyn_model.modes", "coupled_frequencies")
+    rhs_timing = deferred("exudyn_model.stepping", "rhs_timing")
 
     def link_frequencies(self, params, basis, n=2, **options):
         """The first `n` bending frequencies [Hz] of one meshed link in `basis`."""
@@ -72,11 +67,6 @@ class ExudynPlugin:
         from exudyn_model import engine
 
         return {"substeps": engine.SUBSTEPS_DEFAULT}[key]
-
-    def rhs_timing(self, case, n=2000, **options):
-        from exudyn_model.stepping import rhs_timing
-
-        return rhs_timing(case, n, **options)
 
 
 PLUGIN = ExudynPlugin()

@@ -241,3 +241,13 @@ def modal_basis(kind: int, n: int, length: float, rho_a: float, ei: float, n_sta
         w_gauss=w_loads,
         phi_gauss=sf(x_loads),
     )
+
+
+def link_frequencies(params, basis: str, n: int = 2, **options) -> np.ndarray:
+    """The first `n` bending frequencies [Hz] of one link in `basis` ("PP", "PF"): the
+    generalised eigenvalues of the model's own modal matrices K_ff, M_ff (quadrature of the
+    scaled shapes, the integrals the model simulates with; `rsmcheck modes`)."""
+    link = params.link
+    b = modal_basis(PP if basis == "PP" else PF, max(n, 2), link.length, link.rho_a, link.ei)
+    lam = eigh(b.k_ff, b.m_ff, eigvals_only=True)
+    return np.sqrt(np.sort(lam)[:n]) / (2 * math.pi)

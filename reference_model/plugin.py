@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from reference_model import settings
 from reference_model.faults import FAULTS
-from rsmcheck.core.plugins import LineStyle, WorkCounter
+from rsmcheck.core.plugins import LineStyle, WorkCounter, deferred
 
 
 class ReferencePlugin:
@@ -51,35 +51,11 @@ class ReferencePlugin:
     def faults(self):
         return FAULTS
 
-    def linear_plant(self, case, outputs, n_inputs=7, eps=1e-7, **options):
-        from reference_model.modes import linear_plant
-
-        return linear_plant(case, outputs, n_inputs, eps, **options)
-
-    def coupled_frequencies(self, case, n=6, f_min=1.0, **options):
-        from reference_model.modes import coupled_frequencies
-
-        return coupled_frequencies(case, n, f_min, **options)
-
-    def link_frequencies(self, params, basis, n=2, **options):
-        """The first `n` bending frequencies [Hz] of one link in `basis` ("PP", "PF") from
-        the model's own modal matrices."""
-        import math
-
-        import numpy as np
-        from scipy.linalg import eigh
-
-        from reference_model.beam_modes import PF, PP, modal_basis
-
-        link = params.link
-        b = modal_basis(PP if basis == "PP" else PF, max(n, 2), link.length, link.rho_a, link.ei)
-        lam = eigh(b.k_ff, b.m_ff, eigvals_only=True)
-        return np.sqrt(np.sort(lam)[:n]) / (2 * math.pi)
-
-    def rhs_timing(self, case, n=2000, **options):
-        from reference_model.stepping import rhs_timing
-
-        return rhs_timing(case, n, **options)
+    # the engine's own linearisation and timing, imported when called
+    linear_plant = deferred("reference_model.modes", "linear_plant")
+    coupled_frequencies = deferred("reference_model.modes", "coupled_frequencies")
+    rhs_timing = deferred("reference_model.stepping", "rhs_timing")
+    link_frequencies = deferred("reference_model.beam_modes", "link_frequencies")
 
 
 PLUGIN = ReferencePlugin()

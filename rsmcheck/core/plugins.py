@@ -24,6 +24,7 @@ one line naming that extra (`require`).
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import os
 import tomllib
@@ -140,6 +141,16 @@ class EnginePlugin(Protocol):
     def faults(self) -> tuple[Fault, ...]:
         """Plausible bugs in its own code, for `make faults`."""
         ...
+
+
+def deferred(module: str, function: str) -> Callable[..., Any]:
+    """A plug-in capability that imports `module` when first called and calls its
+    `function` (a plug-in module stays light: module doc)."""
+    def call(*args, **kwargs):
+        return getattr(importlib.import_module(module), function)(*args, **kwargs)
+    call.__name__ = function
+    call.__doc__ = f"`{module}.{function}`, imported when called."
+    return staticmethod(call)
 
 
 # ---------------------------------------------------------------------------------------
