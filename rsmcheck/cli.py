@@ -40,12 +40,12 @@ def _cmd_cases(args: argparse.Namespace) -> int:
     return 0
 
 
-def _engine_names(choice: str | None) -> list[str]:
+def _engine_names(choice: str | None, option: str = "--engine") -> list[str]:
     """The engines `--engine`/`--engines` names ("all", a comma-separated list, or None for
     the default engines), each with its libraries installed."""
     names = engine_names(choice)
     for n in names:
-        require(n)
+        require(n, option)
     return names
 
 
@@ -58,7 +58,7 @@ def _cmd_engines(args: argparse.Namespace) -> int:
         state = "available" if available(name) else (
             f"NOT INSTALLED: pip install 'rsmcheck[{p.extra}]'" if p.extra else "NOT INSTALLED")
         tables = ", ".join(f"[{t}]" for t in p.tables) or "-"
-        print(f"{name:12s} {p.label:12s} {role:9s} {state:12s} tables {tables}; module {type(p).__module__}")
+        print(f"{name:12s} {p.label:12s} {role:9s} tables {tables:12s} {type(p).__module__:26s} {state}")
         if caps:
             print(f"{'':12s} offers {', '.join(caps)}")
     return 0
@@ -133,7 +133,7 @@ def _fmt(x: float) -> str:
 def _cmd_check(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out") if args.out else None
     cases = [load_case(name) for name in args.case]  # validate every case before running any
-    engines = _engine_names(args.engines)
+    engines = _engine_names(args.engines, "--engines")
     if len(engines) < 2:
         raise InputError("--engines", args.engines, "a check compares two or more engines")
     options = _engine_options(args.option, engines)
@@ -184,7 +184,7 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     # lazy: at the top its scipy would add ≈ 0.5 s to every command (`rsmcheck --help` takes 0.4 s)
     from rsmcheck.orchestration.modes import arm_rows, link_rows
 
-    engines = _engine_names(args.engines)
+    engines = _engine_names(args.engines, "--engines")
     options = _engine_options(args.option, engines)
     links = link_rows(options=options, engines=engines)
     arms = arm_rows(options=options, engines=engines)
