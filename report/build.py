@@ -142,6 +142,16 @@ def verdict_rows(verdict: dict, goldens: bool = True) -> list[VerdictRow]:
     return rows
 
 
+def _mode_engines(modes: dict | None) -> dict[str, list[dict[str, str]]]:
+    """The engines whose frequencies the stored modes tables hold ("ENGINE_hz" keys), in
+    registry order, with their labels: the columns of the eigenfrequency section."""
+    out = {}
+    for part in ("links", "arms"):
+        rows = (modes or {}).get(part) or [{}]
+        out[part] = [{"name": n, "label": p.label} for n, p in plugins().items() if f"{n}_hz" in rows[0]]
+    return out
+
+
 def _rigid_rows(checker: str, checks: list[dict]) -> list[VerdictRow]:
     """The verdict rows of a checking plug-in's rigid checks."""
     rows = []
@@ -347,7 +357,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
         kinds=sorted({r.kind for r in rows}), missing_goldens=missing_goldens, missions=missions, cases=cases,
         paper=figures, dep_head=dep_head, dep_rows=dep_rows,
         rigid=[{"label": plugins()[n].label if n in plugins() else n, "checks": c} for n, c in v.get("rigid", {}).items()],
-        modes=st.modes,
+        modes=st.modes, mode_engines=_mode_engines(st.modes),
         studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
         faults=_stored_json(data_dir, "faults.json"),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
