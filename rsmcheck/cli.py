@@ -436,9 +436,11 @@ def _use_cases_dirs(dirs: Sequence[str]) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     dirs, argv = _take_cases_dirs(argv, anywhere=False)
-    plugin_commands = exit_code("rsmcheck", _plugin_commands) if argv else {}
-    if isinstance(plugin_commands, int):  # a plug-in that does not load: one line, exit 2
-        return plugin_commands
+    try:
+        plugin_commands = _plugin_commands() if argv else {}
+    except InputError as exc:  # a plug-in that does not load: one line, exit 2
+        sys.stderr.write(f"rsmcheck: {exc}\n")
+        return 2
     if argv and argv[0] in (DELEGATED | set(plugin_commands)):
         more, rest = _take_cases_dirs(argv[1:], anywhere=True)
         args = argparse.Namespace(command=argv[0], rest=rest, cases_dir=dirs + more)

@@ -192,7 +192,7 @@ def run_engine(engine: str, case: Case, options: Mapping[str, Any] | None = None
     except InputError:
         raise
     except (TypeError, ValueError) as exc:
-        raise InputError(f"--{engine}", ",".join(f"{k}={v}" for k, v in options.items()) or "options",
+        raise InputError("--option", ",".join(f"{engine}:{k}={v}" for k, v in options.items()) or engine,
                          str(exc)) from None
 
 
