@@ -426,7 +426,8 @@ class CaseCheck:
 def check_cases(cases: Sequence[Any], short: bool, options: Mapping[str, Mapping[str, Any]] | None = None,
                 run_dir=None, *, rerun: bool = False, workers: int = 2, progress=None,
                 engines: Sequence[str] | None = None) -> list[CaseCheck]:
-    """`rsmcheck check`: the runs of `engines` (default: the default engines) from `rsmcheck.orchestration.runs.get_runs`
+    """`rsmcheck check`: the runs of `engines` (default: the default engines) from
+    `rsmcheck.orchestration.runs.get_runs`
     (stored in and reused from `run_dir` when given, else made in memory), each case's
     rows by `case_rows`.  Every case is looked at before anything runs (`not_checked`); a
     case without rows is returned with `skipped` set and nothing run: it is not a pass."""

@@ -27,8 +27,7 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   be compared with, and is "inputs changed", exit 1 until blessed).
 * A run also moved when it did more work than its golden: a counter of its solver (the
   reference's attempted steps, Exudyn's Newton iterations, …: each plug-in's
-  `work_counters`) above the
-  golden's by more than `WORK_TOL` and `WORK_SLACK`.  Work is counted, never timed: the
+  `work_counters`) above the golden's by more than `WORK_TOL` and `WORK_SLACK`.  Work is counted, never timed: the
   counts of the same code repeat exactly on one machine and move by at most ~1 % under
   round-off, its wall time by several per cent from run to run.
 """
@@ -77,12 +76,12 @@ ABS_FLOOR = 1e-14
 #: two events are the same when kind and identity (`Event.identity`) agree and times
 #: within this [s]
 EVENT_TIME_TOL = 1e-9
-#: the work of a run, from the counters in its solver settings (`EngineRun.solver`): per
-#: engine, a label and the counters summed into it
-#: a counter may exceed its golden's by WORK_TOL of it plus WORK_SLACK: 4 × the largest spread
-#: that round-off causes (Exudyn's Newton iterations in p1_transport, +1.25 % under the mass
-#: perturbation; the reference's attempted steps 0.7 % under the step perturbation), and
-#: 3 × the ±1 by which a count of a few Jacobians moves (docs/gate.md, "Work")
+#: a run's work: each engine plug-in's `work_counters`, sums of the counters in its solver
+#: settings (`EngineRun.solver`); a counter may exceed its golden's by WORK_TOL of it plus
+#: WORK_SLACK: 4 × the largest spread that round-off causes (Exudyn's Newton iterations in
+#: p1_transport, +1.25 % under the mass perturbation; the reference's attempted steps 0.7 %
+#: under the step perturbation), and 3 × the ±1 by which a count of a few Jacobians moves
+#: (docs/gate.md, "Work")
 WORK_TOL = 0.05
 WORK_SLACK = 3
 _TOL = "gate_tol."
