@@ -17,8 +17,9 @@ from typing import Callable, Sequence
 
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
-from rsmcheck.orchestration import bench, compare, gate
+from rsmcheck.orchestration import bench, compare, executor, gate
 from rsmcheck.orchestration.chain import run_case
+from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import available, engine_names, plugin, plugins, require
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
@@ -299,6 +300,9 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
 }
 
 
+SCHEDULER_HELP = (f"run the jobs of check, gate, bless and report on the Dask cluster whose scheduler is at "
+                  f"ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this machine's "
+                  f"processes; docs/cluster.md)")
 CASES_DIR_HELP = (f"also read the case files of folder DIR (repeatable; before or after the command; "
                   f"${CASES_ENV} too, {os.pathsep}-separated); a name in two folders is an error")
 
@@ -310,12 +314,15 @@ def _global_options() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(add_help=False)
     p.add_argument("--cases-dir", dest="cases_dir_after", action="append", metavar="DIR",
                    default=argparse.SUPPRESS, help=CASES_DIR_HELP)
+    p.add_argument("--scheduler", dest="scheduler_after", metavar="ADDRESS", default=argparse.SUPPRESS,
+                   help=SCHEDULER_HELP)
     return p
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="rsmcheck", description="Validation benchmark for the dual-arm flexible space robot")
     parser.add_argument("--cases-dir", action="append", metavar="DIR", default=[], help=CASES_DIR_HELP)
+    parser.add_argument("--scheduler", metavar="ADDRESS", default=None, help=SCHEDULER_HELP)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     common = [_global_options()]
     add_parser = sub.add_parser
@@ -392,6 +399,9 @@ DELEGATED = {"bench"}
 #: done or not all shown, so "all good" cannot be claimed)
 LISTINGS = {"cases", "modes"}
 
+#: commands whose runs go through rsmcheck.orchestration.runs.run_jobs (--scheduler)
+JOB_COMMANDS = {"check", "gate", "bless", "report"}
+
 
 def _take_cases_dirs(argv: list[str], anywhere: bool) -> tuple[list[str], list[str]]:
     """(the --cases-dir values, the other arguments): from the leading options only, or
@@ -433,6 +443,17 @@ def _use_cases_dirs(dirs: Sequence[str]) -> None:
     cases_dirs()  # a missing folder in the variable: one line before anything runs
 
 
+def _use_scheduler(args: argparse.Namespace) -> None:
+    """--scheduler (else $RSMCHECK_SCHEDULER): for a command that will run jobs on it, the
+    scheduler must answer and its workers run this code, before anything runs (else one
+    line, exit 2: rsmcheck.orchestration.executor.connect)."""
+    executor.use_scheduler(args.scheduler)
+    address = executor.scheduler_address()
+    runs_nothing = any(getattr(args, flag, False) for flag in ("serial", "render_only", "tolerances"))
+    if address and args.command in JOB_COMMANDS and not runs_nothing:
+        executor.connect(address, source_digest)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     dirs, argv = _take_cases_dirs(argv, anywhere=False)
@@ -443,7 +464,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if argv and argv[0] in (DELEGATED | set(plugin_commands)):
         more, rest = _take_cases_dirs(argv[1:], anywhere=True)
-        args = argparse.Namespace(command=argv[0], rest=rest, cases_dir=dirs + more)
+        args = argparse.Namespace(command=argv[0], rest=rest, cases_dir=dirs + more, scheduler=None)
     else:
         try:
             args = build_parser().parse_args(argv)
@@ -451,17 +472,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             flush_stdout()
             raise
         args.cases_dir = dirs + args.cases_dir + getattr(args, "cases_dir_after", [])
+        args.scheduler = getattr(args, "scheduler_after", None) or args.scheduler
     saved = os.environ.get(CASES_ENV)
     run = COMMANDS.get(args.command, _plugin_command)
 
     def command() -> int:
         _use_cases_dirs(args.cases_dir)
+        _use_scheduler(args)
         return run(args)
 
     try:
         return exit_code("rsmcheck", command,
                          cut_short=0 if args.command in LISTINGS or getattr(args, "tolerances", False) else 1)
     finally:  # main() called in-process (tests) leaves the environment as it was
+        executor.use_scheduler(None)
         if saved is None:
             os.environ.pop(CASES_ENV, None)
         else:

@@ -48,6 +48,7 @@ from pathlib import Path
 from rsmcheck.core.cases import Case, load_case
 from rsmcheck.core.plugins import Fault, default_engines, make_engine, plugin, plugins, simulators, with_capability
 from rsmcheck.orchestration.compare import check_runs
+from rsmcheck.orchestration.executor import SCHEDULER_ENV
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.runs import Job, expected_wall, run_engine, run_jobs
 from rsmcheck.driver.runner import run
@@ -136,7 +137,9 @@ def _in_copy(tree: Path, *args: str) -> subprocess.CompletedProcess:
     an empty numba cache (module doc: the cache does not see a change in a called file)."""
     cache = tree / ".numba_cache"
     shutil.rmtree(cache, ignore_errors=True)
-    env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(cache)}
+    # the copy's jobs run its own (faulted) code on this machine, never on a cluster's workers
+    env = {k: v for k, v in os.environ.items() if k != SCHEDULER_ENV}
+    env.update(PYTHONPATH=str(tree), NUMBA_CACHE_DIR=str(cache))
     return subprocess.run([sys.executable, "-m", "rsmcheck.orchestration.faults", *args],
                           cwd=tree, env=env, capture_output=True, text=True)
 

@@ -12,10 +12,11 @@ a variant (short or full):
   ones, and read back, so that a fresh run and a reused one reach the comparison alike;
 * without a folder every run is made and kept in memory (the gate: fresh runs only).
 
-The work is done by `run_jobs`: independent jobs in worker processes (spawn), two at a
-time by default, longest first (the wall time each golden recorded, `expected_wall`), a
-line per finished job and a failed job named with its error; `workers=0` runs them in
-this process.  The report's Pinocchio and eigenfrequency jobs and the gate's perturbed
+The work is done by `run_jobs`: independent jobs on a Dask cluster
+(rsmcheck.orchestration.executor: by default one of this machine's, `workers` processes,
+two by default; or the one `rsmcheck --scheduler ADDRESS` or $RSMCHECK_SCHEDULER names),
+longest first (the wall time each golden recorded, `expected_wall`), a line per finished
+job and a failed job named with its error; `workers=0` runs them in this process.  The report's Pinocchio and eigenfrequency jobs and the gate's perturbed
 runs go through the same pool.
 """
 
@@ -24,18 +25,17 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import json
-import multiprocessing
 import pickle
 import tempfile
 import time
 import traceback
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from rsmcheck.core.cases import Case, load_case, sibling_case
 from rsmcheck.core.errors import InputError, SimulationDiverged
+from rsmcheck.orchestration import executor
 from rsmcheck.orchestration.chain import run_mission
 from rsmcheck.core.plugins import make_engine, plugins
 from rsmcheck.driver.runner import run
@@ -51,7 +51,7 @@ SOURCE_PACKAGES = ("rsmcheck",)
 NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/orchestration/collect.py", "rsmcheck/orchestration/bench.py",
                "rsmcheck/orchestration/studies.py", "rsmcheck/orchestration/faults.py",
                "rsmcheck/orchestration/gate.py", "rsmcheck/orchestration/compare.py",
-               "rsmcheck/orchestration/runs.py")
+               "rsmcheck/orchestration/runs.py", "rsmcheck/orchestration/executor.py")
 
 Progress = Callable[[str], None]
 
@@ -154,9 +154,11 @@ def _call(fn: Callable[..., Any], args: tuple) -> Outcome:
 
 
 def run_jobs(jobs: Sequence[Job], progress: Progress | None = None, workers: int = 2) -> dict[Job, Outcome]:
-    """Run `jobs`, longest first, `workers` at a time in spawned processes (0: one after the
-    other in this process); {job: outcome}.  `progress(text)` gets a line per finished job:
-    how many are done, the time since the start, the job and its wall time or its error."""
+    """Run `jobs`, longest first, on a Dask cluster (`executor`: this machine's, `workers`
+    processes, or the one --scheduler / $RSMCHECK_SCHEDULER names; 0: one after the other
+    in this process); {job: outcome}.  `progress(text)` gets a line per finished job: how
+    many are done, the time since the start, the job and its wall time or its error (a job
+    Dask could not run, e.g. one whose workers kept dying: KilledWorker)."""
     out: dict[Job, Outcome] = {}
     if not jobs:
         return out
@@ -173,10 +175,9 @@ def run_jobs(jobs: Sequence[Job], progress: Progress | None = None, workers: int
         for n, job in enumerate(order, 1):
             done(n, job, _call(job.fn, job.args))
         return out
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {pool.submit(_call, job.fn, job.args): job for job in order}
-        for n, fut in enumerate(as_completed(futures), 1):
-            done(n, futures[fut], fut.result())
+    tasks = [(_call, (job.fn, job.args)) for job in order]
+    for n, (i, outcome, exc) in enumerate(executor.completed(tasks, workers, source_digest), 1):
+        done(n, order[i], outcome if exc is None else Outcome(None, exc, 0.0))
     return out
 
 
@@ -331,7 +332,7 @@ def get_runs(cases: Sequence[Case], engines: Sequence[str], short: bool, run_dir
                             else (run_engine, (e, case.variant(short), options[e])))
                 jobs.append(Job(f"{case.name} / {e}", fn, args, expected_wall(case, e), (case.name, e)))
         if progress and (jobs or extra):
-            progress(f"{len(jobs) + len(extra)} jobs " + (f"on {workers} processes" if workers > 0 else "in this process")
+            progress(f"{len(jobs) + len(extra)} jobs " + executor.describe(workers)
                      + (f"; stored runs reused: {', '.join(res.reused)}" if res.reused else ""))
         outcomes = run_jobs([*jobs, *extra], progress, workers)
     fresh: dict[str, dict[str, EngineRun]] = {}
