@@ -112,12 +112,20 @@ def local_client(workers: int) -> Any:
     _quiet()
     from distributed import Client, LocalCluster
 
+    import dask
+
     env = dict(os.environ)
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                           memory_limit=0, silence_logs=logging.ERROR)
+    # the workers inherit this process's environment unchanged, as the runs made in this
+    # process do: Dask's nannies would set OMP_NUM_THREADS, MKL_NUM_THREADS,
+    # OPENBLAS_NUM_THREADS = 1 and MALLOC_TRIM_THRESHOLD_, and with them release's Exudyn
+    # run took 16 146 Newton iterations instead of 16 143 (observables 4e-15 apart):
+    # the runs would no longer equal the serial ones to the bit
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": {}}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                               memory_limit=0, silence_logs=logging.ERROR)
     client = Client(cluster, set_as_default=False)
-    # Dask sets OMP_NUM_THREADS=1 and a few more here for its workers: not for this
-    # process's other children (a test's subprocess, a fault's copy)
+    # whatever Dask still sets here for its workers stays out of this process's other
+    # children (a test's subprocess, a fault's copy)
     for name in set(os.environ) - set(env):
         del os.environ[name]
     os.environ.update(env)

@@ -33,3 +33,8 @@ def marked(folder: str, delay: float, fn, *args):
     tmp.rename(Path(folder) / str(os.getpid()))
     time.sleep(delay)
     return fn(*args)
+
+
+def environment(names: tuple[str, ...]) -> dict[str, str | None]:
+    """The values of the environment variables `names` in the process running the job."""
+    return {n: os.environ.get(n) for n in names}

@@ -168,3 +168,23 @@ def test_an_unreachable_scheduler_is_one_line_and_exit_2_before_anything_runs(mo
     assert err.count("\n") == 2 and err.count(address) == 2, err
     assert time.monotonic() - t0 < 30
     assert executor.scheduler_address() == address  # --scheduler does not outlive its command
+
+
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MALLOC_TRIM_THRESHOLD_")
+
+
+def test_the_local_workers_run_in_this_process_s_environment(monkeypatch):
+    """Dask's nannies set OMP/MKL/OpenBLAS threads to 1 for their workers unless told not
+    to; in release that moved Exudyn's run by 3 Newton iterations (observables 4e-15 apart):
+    the local cluster's workers see the thread variables as this process does, so that
+    their runs equal the serial ones to the bit."""
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")  # a value Dask would overwrite with 1
+    executor.close_local()
+    try:
+        job = Job("environment", dask_jobs.environment, (THREAD_VARIABLES,))
+        remote = run_jobs([job], workers=1)[job]
+        assert remote.error is None, remote.error_text
+        assert remote.value == {n: os.environ.get(n) for n in THREAD_VARIABLES}
+        assert os.environ.get("OMP_NUM_THREADS") == "2"  # this process's own left as it was
+    finally:
+        executor.close_local()
