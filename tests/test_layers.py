@@ -68,8 +68,10 @@ ENGINE_LIBRARIES = {"exudyn": "exudyn_model", "pinocchio": "pinocchio_check"}
 #: `rsmcheck --help` from 0.4 s to 1.0 s; the executor imports Dask only to run jobs
 DEFERRED_ALLOWED = {("rsmcheck.cli", "rsmcheck.orchestration.collect"), ("rsmcheck.cli", "rsmcheck.report.build"),
                     ("rsmcheck.cli", "rsmcheck.orchestration.modes"),
-                    # Dask: `import distributed` at the top adds ≈ 0.7 s to every command
-                    ("rsmcheck.orchestration.executor", "distributed")}
+                    # Dask: `import distributed` (and its dask.config) at the top adds ≈ 0.7 s
+                    # to every command
+                    ("rsmcheck.orchestration.executor", "distributed"),
+                    ("rsmcheck.orchestration.executor", "dask")}
 #: generic top-level names the project must not import (installed as rsmcheck.core.cases and
 #: rsmcheck.report; cases/ holds only data)
 GENERIC_NAMES = ("cases", "report")
