@@ -300,8 +300,8 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
 }
 
 
-SCHEDULER_HELP = (f"run the jobs of check, gate, bless and report on the Dask cluster whose scheduler is at "
-                  f"ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this machine's "
+SCHEDULER_HELP = (f"run the jobs of check, gate, bless, report and bench on the Dask cluster whose scheduler "
+                  f"is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this machine's "
                   f"processes; docs/cluster.md)")
 CASES_DIR_HELP = (f"also read the case files of folder DIR (repeatable; before or after the command; "
                   f"${CASES_ENV} too, {os.pathsep}-separated); a name in two folders is an error")
@@ -403,10 +403,16 @@ LISTINGS = {"cases", "modes"}
 JOB_COMMANDS = {"check", "gate", "bless", "report"}
 
 
-def _take_cases_dirs(argv: list[str], anywhere: bool) -> tuple[list[str], list[str]]:
-    """(the --cases-dir values, the other arguments): from the leading options only, or
-    from `anywhere` (the delegated commands, whose own parsers do not know the option)."""
-    dirs: list[str] = []
+#: the global options that take a value, taken out of the arguments before the command is
+#: parsed (`_take_globals`): option → the Namespace field it fills
+GLOBAL_VALUES = {"--cases-dir": "cases_dir", "--scheduler": "scheduler"}
+
+
+def _take_globals(argv: list[str], anywhere: bool) -> tuple[dict[str, list[str]], list[str]]:
+    """({field: values} of the GLOBAL_VALUES options, the other arguments): from the leading
+    options only, or from `anywhere` (the delegated commands, whose own parsers do not know
+    them: `rsmcheck bench --scheduler ADDRESS`)."""
+    found: dict[str, list[str]] = {f: [] for f in GLOBAL_VALUES.values()}
     rest: list[str] = []
     i = 0
     while i < len(argv):
@@ -414,22 +420,23 @@ def _take_cases_dirs(argv: list[str], anywhere: bool) -> tuple[list[str], list[s
         if not anywhere and not a.startswith("-"):
             rest += argv[i:]
             break
-        if a == "--cases-dir":
+        if a in GLOBAL_VALUES:
             if i + 1 == len(argv):
-                sys.stderr.write("rsmcheck: argument --cases-dir: expected one argument\n")
+                sys.stderr.write(f"rsmcheck: argument {a}: expected one argument\n")
                 raise SystemExit(2)
-            dirs.append(argv[i + 1])
+            found[GLOBAL_VALUES[a]].append(argv[i + 1])
             i += 2
             continue
-        if a.startswith("--cases-dir="):
-            dirs.append(a.partition("=")[2])
+        name, eq, value = a.partition("=")
+        if eq and name in GLOBAL_VALUES:
+            found[GLOBAL_VALUES[name]].append(value)
         elif a == "--" and anywhere:
             rest += argv[i:]
             break
         else:
             rest.append(a)
         i += 1
-    return dirs, rest
+    return found, rest
 
 
 def _use_cases_dirs(dirs: Sequence[str]) -> None:
@@ -456,15 +463,18 @@ def _use_scheduler(args: argparse.Namespace) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    dirs, argv = _take_cases_dirs(argv, anywhere=False)
+    lead, argv = _take_globals(argv, anywhere=False)
+    dirs = lead["cases_dir"]
     try:
         plugin_commands = _plugin_commands() if argv else {}
     except InputError as exc:  # a plug-in that does not load: one line, exit 2
         sys.stderr.write(f"rsmcheck: {exc}\n")
         return 2
     if argv and argv[0] in (DELEGATED | set(plugin_commands)):
-        more, rest = _take_cases_dirs(argv[1:], anywhere=True)
-        args = argparse.Namespace(command=argv[0], rest=rest, cases_dir=dirs + more, scheduler=None)
+        more, rest = _take_globals(argv[1:], anywhere=True)
+        schedulers = lead["scheduler"] + more["scheduler"]
+        args = argparse.Namespace(command=argv[0], rest=rest, cases_dir=dirs + more["cases_dir"],
+                                  scheduler=schedulers[-1] if schedulers else None)
     else:
         try:
             args = build_parser().parse_args(argv)
@@ -472,7 +482,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             flush_stdout()
             raise
         args.cases_dir = dirs + args.cases_dir + getattr(args, "cases_dir_after", [])
-        args.scheduler = getattr(args, "scheduler_after", None) or args.scheduler
+        args.scheduler = (getattr(args, "scheduler_after", None) or args.scheduler
+                          or (lead["scheduler"][-1] if lead["scheduler"] else None))
     saved = os.environ.get(CASES_ENV)
     run = COMMANDS.get(args.command, _plugin_command)
 

@@ -7,9 +7,15 @@ the variant `rsmcheck run/check` would run: with `--variant short` the case's [s
 variant with its own segments and engine settings (`bench_cases`).  The mission runs its
 phases chained, as `rsmcheck run mission` does, and records each phase's own simulated and
 wall seconds (`phases`).  Beside the times, each run records the settings and counts behind
-them (`SOLVER_KEYS`: steps, Newton iterations, Jacobians).  `--jobs 2` runs two of these
-processes at a time (on the 2-core machine: the engines side by side, as the full-length
-flights of docs/cases.md were measured); the runs keep the order they were listed in.
+them (`SOLVER_KEYS`: steps, Newton iterations, Jacobians).  Each run is one Dask task
+(rsmcheck.orchestration.executor) that starts that process on its worker and waits for it,
+and takes the worker's one unit of the resource `executor.BENCH_RESOURCE`: a worker runs one
+bench process at a time whatever its threads.  `--jobs 2` starts a local cluster of two
+workers, so two of these processes run at a time (on the 2-core machine: the engines side
+by side, as the full-length flights of docs/cases.md were measured); with `rsmcheck
+--scheduler ADDRESS bench` (or $RSMCHECK_SCHEDULER) the runs go to that cluster's workers
+that have the resource (docs/cluster.md), and `--jobs` is not used.  The runs are
+submitted, and kept, in the order they were listed in.
 Reported per run: simulated seconds, wall seconds, simulated seconds per wall second (×
 real time), peak memory; a run that fails is reported with its error and the others go on
 (in the JSON, `--json` and `--out`, its numbers are null: the document is strict JSON,
@@ -39,7 +45,10 @@ Two machines of the project's 2-core kind, both calling their CPU "AMD EPYC", ra
 code's full mission 28 % (reference) and 42 % (Exudyn) apart, and the compiled RHS timing did
 not show it (2 %; benchmarks/README.md, "Recorded runs"): figures from two documents compare only when their machines do
 (`rsmcheck.core.store.same_machine`), and a recorded machine can tell two machines apart, not
-prove them alike (a shared host's load is not in the record).
+prove them alike (a shared host's load is not in the record).  Each run also records the
+machine it ran on (`machine` of the run, evaluated on the Dask worker that ran it): the
+document's `machine` is this process's, and the table says in one line when the runs ran on
+another machine than that, or on more than one (`runs_machines_note`).
 """
 
 from __future__ import annotations
@@ -50,8 +59,7 @@ import math
 import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from rsmcheck.core.cases import Case, list_cases, load_case
 from rsmcheck.core.errors import InputError
@@ -60,7 +68,9 @@ from rsmcheck.orchestration.bench_diff import compare, diff_table, read_bench
 from rsmcheck.orchestration.targets import read_targets, targets_table
 from rsmcheck.core.params import Params
 from rsmcheck.driver.runner import SPLIT
-from rsmcheck.core.store import dumps_json, git_commit, machine, machine_text, output_file, write_json
+from rsmcheck.core.store import dumps_json, git_commit, machine, machine_text, output_file, same_machine, write_json
+from rsmcheck.orchestration import executor
+from rsmcheck.orchestration.runs import source_digest
 
 VARIANTS = ("short", "full")
 
@@ -112,20 +122,45 @@ def bench_cases(name: str, short: bool) -> tuple[Case, Case]:
     return case, first
 
 
-def bench_run(case: str, engine: str, variant: str) -> dict[str, Any]:
-    """One run in a fresh process: {case, engine, variant, wall_s, sim_s, peak_mb} or, when
-    it fails, the same keys with NaN and `error` (the last line the process printed)."""
-    proc = subprocess.run([sys.executable, "-c", _CHILD, case, engine, "1" if variant == "short" else "0"],
+def bench_run(case: str, engine: str, variant: str, script: str = _CHILD) -> dict[str, Any]:
+    """One run in a fresh process (`python -c script CASE ENGINE 1|0`, this process's
+    Python: on a Dask worker, the worker's): {case, engine, variant, wall_s, sim_s, peak_mb,
+    …, machine} or, when it fails, the same keys with NaN and `error` (the last line the
+    process printed).  `machine` is the machine this function ran on (`store.machine()`,
+    taken after the process ended: not in its time)."""
+    proc = subprocess.run([sys.executable, "-c", script, case, engine, "1" if variant == "short" else "0"],
                           capture_output=True, text=True)
     lines = proc.stdout.strip().splitlines()
     if proc.returncode == 0 and lines:
         try:
-            return json.loads(lines[-1])
+            return {**json.loads(lines[-1]), "machine": machine()}
         except json.JSONDecodeError:
             pass
     err = proc.stderr.strip().splitlines()
+    return dict(failed_run(case, engine, variant, err[-1] if err else f"exit code {proc.returncode}, no output"),
+                machine=machine())
+
+
+def failed_run(case: str, engine: str, variant: str, error: str) -> dict[str, Any]:
+    """The record of a run that gave no figures: NaN and its `error`."""
     return {"case": case, "engine": engine, "variant": variant, "wall_s": math.nan, "sim_s": math.nan,
-            "peak_mb": math.nan, "error": err[-1] if err else f"exit code {proc.returncode}, no output"}
+            "peak_mb": math.nan, "error": error}
+
+
+def run_all(work: Sequence[tuple[str, str, str]], jobs: int, progress: Callable[[dict], None] | None = None,
+            script: str = _CHILD) -> list[dict[str, Any]]:
+    """Each (case, engine, variant) of `work` as one Dask task (`bench_run`, taking one unit
+    of `executor.BENCH_RESOURCE`: one at a time per worker) on the local cluster of `jobs`
+    workers, or on the cluster --scheduler / $RSMCHECK_SCHEDULER names; the runs in the
+    order of `work` (also the order of priority), `progress(run)` as each finishes.  A task
+    Dask could not run (its worker kept dying: KilledWorker) is a failed run with that error."""
+    out: list[dict[str, Any] | None] = [None] * len(work)
+    tasks = [(bench_run, (*item, script) if script is not _CHILD else tuple(item)) for item in work]
+    for i, value, exc in executor.completed(tasks, jobs, source_digest, resources={executor.BENCH_RESOURCE: 1}):
+        out[i] = value if exc is None else failed_run(*work[i], f"{type(exc).__name__}: {exc}")
+        if progress:
+            progress(out[i])
+    return out  # type: ignore[return-value]
 
 
 def rhs_timings(n: int = 2000, engines: Sequence[str] | None = None) -> dict[str, Any]:
@@ -172,7 +207,8 @@ def table(doc: dict) -> str:
         head += f" | {e + ' wall s':>16s} {'× real':>8s} {'MB':>6s}"
     if len(engines) == 2:
         head += f" | {engines[1] + '/' + engines[0]:>18s}"
-    lines = [f"machine: {machine_text(doc.get('machine'))}", "", head, "-" * len(head)]
+    note = runs_machines_note(doc)
+    lines = [f"machine: {machine_text(doc.get('machine'))}", *([note] if note else []), "", head, "-" * len(head)]
     for (case, variant), by in rows.items():
         sim = next((r["sim_s"] for r in by.values() if math.isfinite(r["sim_s"])), math.nan)
         line = f"{case:20s} {variant:7s} {sim:8.2f}"
@@ -203,6 +239,35 @@ def table(doc: dict) -> str:
     for r in failed:
         lines.append(f"FAILED {r['case']} {r['engine']} {r['variant']}: {r['error']}")
     return "\n".join(lines)
+
+
+def runs_machines_note(doc: dict) -> str:
+    """'' when every run ran on the document's machine (the same kind: `same_machine`) or
+    no run recorded its own (older documents), else one line: the one other machine the
+    runs ran on, or how many kinds of machine they ran on (and how many runs did not
+    record theirs): wall times then compare only between runs of one machine."""
+    runs = doc.get("runs", [])
+    recorded = [r["machine"] for r in runs if r.get("machine")]
+    if not recorded:
+        return ""
+    kinds: list[tuple[dict, int]] = []
+    for m in recorded:
+        for n, (k, count) in enumerate(kinds):
+            if same_machine(m, k):
+                kinds[n] = (k, count + 1)
+                break
+        else:
+            kinds.append((m, 1))
+    unknown = len(runs) - len(recorded)
+    if len(kinds) == 1 and not unknown:
+        if same_machine(kinds[0][0], doc.get("machine")):
+            return ""
+        return f"runs ran on another machine: {machine_text(kinds[0][0])}"
+    return (f"runs ran on {len(kinds)} machine{'s' if len(kinds) != 1 else ''} ("
+            + "; ".join(f"{count} on {k.get('cpu', 'unknown')}, {k.get('logical_cpus', '?')} logical CPUs"
+                        for k, count in kinds)
+            + (f"; {unknown} not recorded" if unknown else "")
+            + "): compare wall times between runs of one machine only (each run's machine in the JSON)")
 
 
 def phase_table(runs: Sequence[dict], engines: Sequence[str]) -> str:
@@ -275,8 +340,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--engine", default="all", help="ENGINE, A,B or all (default: every engine that simulates)")
     parser.add_argument("--cases", nargs="+", help="only these cases (default: every case and the mission)")
     parser.add_argument("--jobs", type=_positive_int, default=1,
-                        help="runs at a time, each in its own process (default 1; 2 on the 2-core machine puts the "
-                             "engines side by side)")
+                        help="runs at a time: the local Dask cluster's workers, each running one run at a time in "
+                             "its own process (default 1; 2 on the 2-core machine puts the engines side by side; "
+                             "not used with rsmcheck --scheduler, whose workers decide)")
     parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_all.json)")
     parser.add_argument("--baseline", metavar="FILE",
                         help="compare the runs with a stored bench document: the work (steps, Newton iterations) "
@@ -302,16 +368,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     commit, dirty = git_commit()  # the code the runs import, not the tree at the end of hours of runs
     started = time.monotonic()
     work = [(name, engine, variant) for name in names for variant in variants for engine in engines]
-    # each run is its own process: threads only wait for them
-    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(bench_run, *item) for item in work]
-        for done in as_completed(futures):
-            r = done.result()
-            state = f"ERROR {r['error']}" if "error" in r else \
-                f"{r['sim_s']:.2f} s in {r['wall_s']:.2f} s ({_speed(r):.3f} × real time)"
-            print(f"[{time.monotonic() - started:7.0f} s] {r['case']} {r['variant']} {r['engine']}: {state}",
-                  file=sys.stderr, flush=True)
-        runs = [f.result() for f in futures]
+
+    def progress(r: dict) -> None:
+        state = f"ERROR {r['error']}" if "error" in r else \
+            f"{r['sim_s']:.2f} s in {r['wall_s']:.2f} s ({_speed(r):.3f} × real time)"
+        print(f"[{time.monotonic() - started:7.0f} s] {r['case']} {r['variant']} {r['engine']}: {state}",
+              file=sys.stderr, flush=True)
+
+    address = executor.scheduler_address()
+    if address:  # the cluster answers, runs this code and has a worker for bench runs: else exit 2 now
+        executor.require_resources(executor.connect(address, source_digest), address, {executor.BENCH_RESOURCE: 1})
+    print(f"{len(work)} run{'s' if len(work) != 1 else ''} " + (f"on the Dask cluster at {address}" if address else
+                                  f"on {args.jobs} local Dask worker{'s' if args.jobs != 1 else ''}")
+          + ", one run per worker at a time", file=sys.stderr, flush=True)
+    # each run is a task that starts its own process on a worker, one per worker at a time
+    runs = run_all(work, args.jobs, progress)
     doc = {"command": "rsmcheck bench " + " ".join(argv if argv is not None else sys.argv[2:]),
            "commit": commit, "dirty": dirty, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
            "machine": machine(), "engines": engines, "jobs": args.jobs, "runs": runs, "rhs_us": rhs_timings()}

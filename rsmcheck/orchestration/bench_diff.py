@@ -15,9 +15,10 @@ sees the last bits of the arithmetic) and 0.023 % (Exudyn).  So:
 * a count that moved by more than `WORK_TOLERANCE` (1 %, three times the largest spread of
   identical code across machines) is a change of the work: a model, a setting or an
   integrator that costs more or less, on any machine;
-* wall times are compared only when both documents ran on the same kind of machine
-  (`rsmcheck.core.store.same_machine`); otherwise the ratio is left out, not printed with a
-  warning.  Even then two documents are two runs, minutes or days apart: benchmarks/README.md
+* wall times are compared only when both runs ran on the same kind of machine
+  (`rsmcheck.core.store.same_machine`; a run's own `machine`, or its document's for a
+  document older than the record per run); otherwise the ratio is left out, not printed
+  with a warning.  Even then two documents are two runs, minutes or days apart: benchmarks/README.md
   measured ±6 % between alternated runs and tens of per cent between sessions.
 
 The comparison reports; it does not gate (exit codes stay `rsmcheck bench`'s own): more work
@@ -104,13 +105,20 @@ def _changed_settings(new: Mapping[str, Any], old: Mapping[str, Any]) -> list[st
     return [f"{key} {old.get(key)} → {new.get(key)}" for key in SETTING_KEYS if old.get(key) != new.get(key)]
 
 
+def run_machine(run: Mapping[str, Any], doc: Mapping[str, Any]) -> Mapping[str, Any] | None:
+    """The machine `run` ran on: its own record (a Dask worker's), else its document's."""
+    return run.get("machine") or doc.get("machine")
+
+
 def compare(doc: Mapping[str, Any], base: Mapping[str, Any], base_name: str = "") -> dict[str, Any]:
     """Each run of `doc` beside the same (case, engine, variant) of `base`.
 
     Per row: `work` (its name, `work`, `base_work`, `work_ratio`), `verdict` ("same work",
     "more work", "less work", "failed", "not in the baseline"), the counts and settings that
-    changed, and `wall_ratio` (doc / base) only when the machines are the same kind."""
-    alike = same_machine(doc.get("machine"), base.get("machine"))
+    changed, and `wall_ratio` (doc / base) only when the two runs' machines (`run_machine`)
+    are the same kind.  `same_machine`: whether they are for every run compared (without
+    one, whether the documents' are)."""
+    pairs: list[bool] = []
     old = {(r["case"], r["engine"], r["variant"]): r for r in base["runs"]}
     rows = []
     for r in doc["runs"]:
@@ -127,6 +135,8 @@ def compare(doc: Mapping[str, Any], base: Mapping[str, Any], base_name: str = ""
         ratio = _ratio(count, base_count)
         solver, base_solver = r.get("solver") or {}, b.get("solver") or {}
         counts = _changed_counts(solver, base_solver, base_count)
+        alike = same_machine(run_machine(r, doc), run_machine(b, base))
+        pairs.append(alike)
         row.update(work=name, work_count=count, base_work=base_count, work_ratio=ratio,
                    counts=counts, settings=_changed_settings(solver, base_solver),
                    wall_s=r["wall_s"], base_wall_s=b["wall_s"],
@@ -136,8 +146,10 @@ def compare(doc: Mapping[str, Any], base: Mapping[str, Any], base_name: str = ""
         else:
             row["verdict"] = "more work" if ratio > 1.0 else "less work"
         rows.append(row)
+    alike = all(pairs) if pairs else same_machine(doc.get("machine"), base.get("machine"))
     return {"file": base_name, "commit": base.get("commit"), "utc": base.get("utc"),
-            "same_machine": alike, "machine": machine_text(base.get("machine")), "rows": rows}
+            "same_machine": alike,
+            "machine": machine_text(base.get("machine")), "rows": rows}
 
 
 def summary(cmp: Mapping[str, Any]) -> str:
@@ -157,7 +169,8 @@ def summary(cmp: Mapping[str, Any]) -> str:
 def diff_table(cmp: Mapping[str, Any]) -> str:
     """The comparison for people: the baseline and its machine, one row per run."""
     where = "the same kind of machine" if cmp["same_machine"] else \
-        "another machine, or one not recorded: wall times not compared"
+        ("runs partly on other machines: wall times compared where a run's machine is its baseline run's"
+         if any(r.get("wall_ratio") is not None for r in cmp["rows"]) else "another machine, or one not recorded: wall times not compared")
     commit = (cmp.get("commit") or "?")[:7]
     lines = [f"against {cmp['file'] or 'the baseline'} ({commit}, {cmp.get('utc') or '?'}; "
              f"{where})", f"baseline machine: {cmp['machine']}"]

@@ -16,6 +16,12 @@ dask.distributed Client and gives back each one's result as it finishes:
   that every worker runs this very code (`runs.source_digest`), else one line, exit 2.
 
 The jobs are submitted longest first, each with a priority that says so to the scheduler.
+`rsmcheck bench` sends its runs the same way, each asking for one unit of the worker
+resource BENCH_RESOURCE (`resources=`, Dask's worker resources): a worker runs one of them
+at a time whatever its threads, and only workers that have the resource take them (the
+local cluster's all do; an existing cluster's are started with `dask worker --resources
+bench=1`, and `completed` says so in one line, exit 2, when none has it).
+
 A worker that dies (killed, out of memory) takes its job back to the scheduler, which runs
 it again on another worker (Dask's `distributed.scheduler.allowed-failures`, 3 by
 default, after which the job fails with KilledWorker and is reported like any failure).
@@ -41,6 +47,9 @@ from rsmcheck.core.errors import InputError
 SCHEDULER_ENV = "RSMCHECK_SCHEDULER"
 #: how long a scheduler may take to answer, and to show a worker [s]
 CONNECT_TIMEOUT_S = 5.0
+#: the worker resource a `rsmcheck bench` run takes one unit of: one run per worker at a
+#: time (each worker of the local cluster has one unit; `dask worker --resources bench=1`)
+BENCH_RESOURCE = "bench"
 
 _local: dict[str, Any] = {}  # "key", "cluster", "client": the one LocalCluster of this process
 _remote: dict[str, Any] = {}  # address → Client
@@ -122,7 +131,7 @@ def local_client(workers: int) -> Any:
     # the runs would no longer equal the serial ones to the bit
     with dask.config.set({"distributed.nanny.pre-spawn-environ": {}}):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                               memory_limit=0, silence_logs=logging.ERROR)
+                               memory_limit=0, silence_logs=logging.ERROR, resources={BENCH_RESOURCE: 1})
     client = Client(cluster, set_as_default=False)
     # whatever Dask still sets here for its workers stays out of this process's other
     # children (a test's subprocess, a fault's copy)
@@ -157,18 +166,34 @@ def close() -> None:
 atexit.register(close)
 
 
+def require_resources(client: Any, address: str, resources: dict[str, float]) -> None:
+    """An InputError (one line, exit 2) when no worker of the cluster at `address` has
+    `resources`: the tasks asking for them would wait for ever."""
+    have = [w.get("resources") or {} for w in client.scheduler_info(n_workers=-1)["workers"].values()]
+    if not any(all(r.get(k, 0) >= v for k, v in resources.items()) for r in have):
+        need = ",".join(f"{k}={v:g}" for k, v in resources.items())
+        raise InputError("--scheduler", address, f"no worker has the resource {need} these tasks need: "
+                         f"start them with `dask worker … --resources {need}` (docs/cluster.md)")
+
+
 def completed(tasks: Sequence[tuple[Callable[..., Any], tuple]], workers: int,
-              digest: Callable[[], str]) -> Iterator[tuple[int, Any, BaseException | None]]:
+              digest: Callable[[], str],
+              resources: dict[str, float] | None = None) -> Iterator[tuple[int, Any, BaseException | None]]:
     """Run `fn(*args)` for each of `tasks` (in this order of priority: the first first) on
     the cluster; (index, value, None) for each as it finishes, or (index, None, exception)
     when Dask could not run it (a job that kept killing its workers: KilledWorker).
-    `digest`: see `connect`."""
+    `digest`: see `connect`.  `resources`: what each task takes of its worker's resources
+    (Dask's worker resources, e.g. {BENCH_RESOURCE: 1}); on an existing cluster some
+    worker must have them (`require_resources`)."""
     from distributed import as_completed
 
     address = scheduler_address()
     client = connect(address, digest) if address else local_client(workers)
+    if address and resources:
+        require_resources(client, address, resources)
     tag = uuid.uuid4().hex[:12]
-    futures = {client.submit(fn, *args, key=f"rsmcheck-{tag}-{i}", priority=len(tasks) - i, pure=False): i
+    futures = {client.submit(fn, *args, key=f"rsmcheck-{tag}-{i}", priority=len(tasks) - i, pure=False,
+                             resources=resources): i
                for i, (fn, args) in enumerate(tasks)}
     try:
         for fut in as_completed(futures, loop=client.loop):
