@@ -29,7 +29,6 @@ class ExudynPlugin:
                      WorkCounter("Jacobians", ("jacobians",)))
     rigid_options = None
     analytic_tests = ()
-    resolution_option = "n_elements"
     #: the engine's constructor options (`rsmcheck check --option exudyn:KEY=VALUE`)
     engine_options = ("rigid", "n_elements", "substeps", "quiet_substeps", "spectral_radius", "newton_rtol",
                       "newton_atol", "jacobian_per_step", "jacobian_period", "field", "restart_on_input_change",

@@ -31,8 +31,6 @@ class ReferencePlugin:
     #: the model's tests against analytic references (conservation of energy and momentum,
     #: the Baumgarte decay of eq. (12), Table 2's frequencies): the fault matrix runs them
     analytic_tests = ("tests/reference_model/test_conservation.py", "tests/reference_model/test_link_modes.py")
-    #: the option that sets the resolution, for `rsmcheck modes --resolution`
-    resolution_option = "n_modes"
     #: the engine's constructor options (`rsmcheck check --option reference:KEY=VALUE`)
     engine_options = ("n_modes", "rtol", "integrator", "h_max", "static_modes", "quiet_integrator")
 

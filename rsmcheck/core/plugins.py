@@ -28,7 +28,7 @@ import importlib
 import importlib.util
 import os
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import lru_cache
 from importlib import metadata, resources
 from typing import Any, Callable, Mapping, Protocol, runtime_checkable
@@ -75,14 +75,6 @@ class Fault:
     path: str
     old: str
     new: str
-    what: str
-
-
-@dataclass(frozen=True)
-class Refinement:
-    """A finer resolution of an engine for studies: constructor options and what they mean."""
-
-    options: Mapping[str, Any]
     what: str
 
 
@@ -326,8 +318,3 @@ def settings_of(case: Case, name: str) -> EngineSettings:
     if s is None:
         s = plugin(name).parse_settings({t: {} for t in plugin(name).tables}, {}, case.path, lambda k: k)
     return s
-
-
-def replace_settings(case: Case, name: str, **changes) -> Case:
-    """`case` with plug-in `name`'s settings changed (`dataclasses.replace` on them)."""
-    return replace(case, engine_settings={**case.engine_settings, name: replace(settings_of(case, name), **changes)})

@@ -34,7 +34,6 @@ class TwomodePlugin:
     link_frequencies = None
     rhs_timing = None
     rigid_options = None
-    resolution_option = None
     analytic_tests = ()
 
     def parse_settings(self, tables, solver, where, key):
