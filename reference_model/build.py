@@ -17,7 +17,7 @@ from typing import Sequence
 
 import numpy as np
 
-from reference_model import kinematics, measures, ode, solve, system
+from reference_model import condense, kinematics, measures, ode, solve, system
 from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
 from reference_model.model_arrays import (
     ModelArrays, N_INPUTS, N_LINKS, N_SCALARS, S_ALPHA, S_BETA, S_BM, S_CM, S_ETA, S_I0, S_ISPG0, S_JB,
@@ -30,8 +30,21 @@ from rsmcheck.core.params import Params
 N_MAX_MODES = 6
 #: static correction shapes per flexible link when they are on (one per end couple)
 N_STATIC = 2
-#: the static correction shapes are on unless a case or caller says otherwise (docs/physics.md §2.4)
-STATIC_MODES_DEFAULT = True
+#: how the static correction shapes enter (docs/physics.md §2.4): "condensed" (massless,
+#: solved from the springs at every right-hand side: condense.py), "explicit" (Ritz
+#: coordinates with their inertia, states of the ODE) or "off"
+STATIC_SHAPES = ("condensed", "explicit", "off")
+STATIC_MODES_DEFAULT = "condensed"
+
+
+def static_shapes(value) -> str:
+    """The `static_modes` option as one of STATIC_SHAPES: a name, or a flag (True: the
+    default way, "condensed"; False: "off")."""
+    if isinstance(value, (bool, np.bool_)):
+        return STATIC_MODES_DEFAULT if value else "off"
+    if value not in STATIC_SHAPES:
+        raise ValueError(f"static_modes must be one of {STATIC_SHAPES} or a flag, got {value!r}")
+    return str(value)
 
 
 @dataclass(frozen=True)
@@ -124,13 +137,15 @@ class ReferenceModel:
     """The Kane–Newton model of the paper built from `params`.
 
     n_modes:      eigenmodes per link, one int for all or six ints (0 = rigid link).
-    static_modes: add the two static correction shapes (the response to unit end couples,
-                  docs/physics.md §2.4) to every flexible link's basis.
+    static_modes: the two static correction shapes (the response to unit end couples,
+                  docs/physics.md §2.4) of every flexible link: "condensed" (the default),
+                  "explicit", "off" (`static_shapes`).  Condensed, they keep their slots in
+                  q (after the link's eigenmodes) but are not states: `complete` fills them.
     orbit:        tidal gravity about the co-moving reference point on (True) or off.
     """
 
     def __init__(self, params: Params, n_modes: int | Sequence[int] = 2, orbit: bool = False,
-                 static_modes: bool = STATIC_MODES_DEFAULT):
+                 static_modes: bool | str = STATIC_MODES_DEFAULT):
         if isinstance(n_modes, (int, np.integer)):
             n_modes = (int(n_modes),) * N_LINKS
         n_eigen = tuple(int(n) for n in n_modes)
@@ -138,7 +153,9 @@ class ReferenceModel:
             raise ValueError(f"n_modes must be 6 integers in 0..{N_MAX_MODES}, got {n_eigen}")
         self.params = params
         self.orbit = orbit
-        self.static_modes = bool(static_modes)
+        self.static_shapes = static_shapes(static_modes)
+        self.static_modes = self.static_shapes != "off"
+        self.condensed = self.static_shapes == "condensed"
         self.n_eigen = n_eigen
         lk = params.link
         n_static = N_STATIC if self.static_modes else 0
@@ -198,15 +215,23 @@ class ReferenceModel:
         mount = np.array([p.geometry.mount_B(1), p.geometry.mount_B(2)], dtype=float)
         ref = self.bases[0][PP]
         nm = np.array(self.layout.n_modes, dtype=np.int64)
+        ne = np.array(self.n_eigen, dtype=np.int64)
         mo = np.array(self.layout.mode_offset, dtype=np.int64)
-        order, first = solve.elimination_order(self.layout.nq, nm, mo)
-        return ModelArrays(
+        order, first = solve.elimination_order(self.layout.nq, nm, mo, ne if self.condensed else nm,
+                                               rotors=self.condensed)
+        arrays = ModelArrays(
             nq=self.layout.nq, sc=sc,
-            nm=nm, mo=mo,
+            nm=nm, ne=ne if self.static_modes else nm, cond=1 if self.condensed else 0, mo=mo,
             phi_bar=stack("phi_bar"), phi_x=stack("phi_x"), m_ff=stack("m_ff"), k_ff=stack("k_ff"),
             phi_tip=phi_tip, slope_0=stack("slope_0"), slope_L=stack("slope_L"),
             phi_g=stack("phi_gauss"), x_g=ref.x_gauss.copy(), w_g=ref.w_gauss.copy(), mount=mount,
-            order=order, first=first)
+            order=order, first=first, sl_T=np.zeros((2, 2, 2, condense.N_ARM, condense.N_COLS)),
+            sl_c=np.zeros((2, 2, condense.N_ARM)), sl_dw=np.zeros((2, 2, condense.N_ARM)),
+            sl_cols=np.zeros((2, 2, condense.N_COLS), dtype=np.int64), sl_ncol=np.zeros((2, 2), dtype=np.int64))
+        if self.condensed:
+            T, c, dw, cols, ncol = condense.slaving_tables(arrays)
+            arrays = arrays._replace(sl_T=T, sl_c=c, sl_dw=dw, sl_cols=cols, sl_ncol=ncol)
+        return arrays
 
     @property
     def scalars(self) -> np.ndarray:
@@ -237,6 +262,30 @@ class ReferenceModel:
 
     def rhs(self, x: np.ndarray, u: np.ndarray, cfg: Configuration) -> np.ndarray:
         return ode.rhs(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
+
+    def complete(self, x: np.ndarray, cfg: Configuration) -> np.ndarray:
+        """x with the condensed static shapes' slots filled from the rest of the state
+        (condense.condense; a copy of x when they are not condensed)."""
+        return condense.condense(np.asarray(x, float), *self.core_args(cfg))[0]
+
+    @property
+    def coordinates(self) -> np.ndarray:
+        """Indices of Y (= [q, X_T]) that are coordinates: all but the slaved static shapes."""
+        o = self.arrays.order
+        return np.sort(o[o < self.layout.ny])
+
+    def slaving(self, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`condense.condense` as dense arrays: the completed state, T (12 × n_z: ∂a_s/∂z,
+        z = [Y, θ_m]) and the q-index of each of its rows (−1: no shape)."""
+        xc, Tc, cols, ncol, idx = condense.condense(np.asarray(x, float), *self.core_args(cfg))
+        T = np.zeros((2 * condense.N_ARM, self.layout.ny + 6))
+        for k in range(2):
+            T[condense.N_ARM * k:condense.N_ARM * (k + 1), cols[k, :ncol[k]]] = Tc[k, :, :ncol[k]]
+        return xc, T, idx.reshape(-1)
+
+    def reduced(self, x: np.ndarray, u: np.ndarray, cfg: Configuration) -> tuple:
+        """`system.assemble_reduced` (slaved static shapes: the system over [Y, θ_m])."""
+        return system.assemble_reduced(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
 
     # ---- quantities checked by Pinocchio (no orbit, no inputs) ----------------------
     def _state(self, q, qd, X_T=None, XT_d=None) -> np.ndarray:
@@ -342,7 +391,11 @@ class ReferenceModel:
         sc[S_WK] = 0.0
         sc[S_WC] = 0.0
         arrays = self.arrays._replace(sc=sc)
-        Mg, f, G, _, _, Bs, *_ = system.assemble(x, u, arrays, self.switches(cfg))
+        if self.condensed:  # the stop's spring is off: slave the shapes without it
+            T, c, dw, cols, ncol = condense.slaving_tables(arrays)
+            arrays = arrays._replace(sl_T=T, sl_c=c, sl_dw=dw, sl_cols=cols, sl_ncol=ncol)
+        reduce = system.assemble_reduced if self.condensed else system.assemble
+        Mg, f, G, _, _, Bs, *_ = reduce(x, u, arrays, self.switches(cfg))
         ydd, Rc = solve.solve_constrained(Mg, f, G, Bs, arrays)
         R_cl = np.zeros(4)
         row = 0
@@ -369,4 +422,4 @@ def initial_state(model: ReferenceModel, init: InitialConfiguration) -> tuple[np
     x[lay.r_O] = init.orbit_r
     x[lay.v_O] = init.orbit_v
     cfg = Configuration(grasp_on=init.grasp.copy(), rho_G=init.rho_G.copy(), basis=terminal_basis(init.grasp))
-    return x, cfg
+    return model.complete(x, cfg), cfg

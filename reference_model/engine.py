@@ -107,7 +107,8 @@ class ReferenceEngine:
     def advance(self, t_next: float, inputs: Inputs) -> None:
         # an interval longer than the case's control period belongs to a quiet segment
         quiet = self.case.solver.is_quiet(t_next - self.t)
-        self.x = self.stepper.advance(self.model, self.cfg, self.x, self.t, t_next, input_vector(inputs), quiet)
+        x = self.stepper.advance(self.model, self.cfg, self.x, self.t, t_next, input_vector(inputs), quiet)
+        self.x = self.model.complete(x, self.cfg)  # condensed static shapes (condense.py)
         self.t = t_next
 
     def sensors(self) -> Sensors:
@@ -159,10 +160,10 @@ class ReferenceEngine:
                 x[lay.ns:lay.ns + 2] -= vcom
                 x[lay.ns + lay.nq:lay.ns + lay.nq + 2] -= vcom
             x[lay.r_O], x[lay.v_O] = orbit_start(case, self.params, float(x[2]))
-        self.x = x
         self.cfg = Configuration(grasp_on=np.array(exact["grasp_on"], dtype=np.int64),
                                  rho_G=np.array(exact["rho_G"], float),
                                  basis=np.array(exact["basis"], dtype=np.int64))
+        self.x = self.model.complete(x, self.cfg)
         self.t = 0.0
 
     def solver_settings(self) -> dict:
@@ -178,6 +179,7 @@ class ReferenceEngine:
                 "control_period": self.case.solver.control_period,
                 "n_modes": ",".join(str(n) for n in self.model.n_eigen),
                 "static_modes": int(self.model.static_modes),
+                "static_shapes": self.model.static_shapes,
                 "steps": stepper.steps, "rejected_steps": stepper.rejected,
                 "wall_integrator_s": stepper.integrator_wall}
 

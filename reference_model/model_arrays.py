@@ -74,10 +74,16 @@ N_LINKS = 6
 #:   phi_bar[i, b, a] = ∫ρφ_a dξ,  phi_x = ∫ρξφ_a dξ,  m_ff[i, b] = ∫ρφφᵀ,  k_ff = ∫EIφ''φ''ᵀ,
 #:   phi_tip = φ_a(L),  slope_0 = φ_a'(0),  slope_L = φ_a'(L),  phi_g[i, b, g, a] = φ_a(x_g[g]);
 #:   nm[i] shapes of link i, starting at q[mo[i]]; mount[k] the root of arm k (base frame);
-#:   order, first: elimination order and envelope of the mass matrix (`elimination_order`).
+#:   ne[i] ≤ nm[i] of them eigenmodes, the rest (nm[i] − ne[i], 0 or 2) static shapes;
+#:   cond = 1: the static shapes are condensed (condense.py: slaved to the rest of the
+#:   state by the springs' equilibrium, with their mass), 0: they are states;
+#:   order, first: elimination order and envelope of the mass matrix (`elimination_order`),
+#:   over the coordinates (with condensed shapes: z = [Y, θ_m] without them);
+#:   sl_T, sl_c, sl_dw, sl_cols, sl_ncol: the slaving of the condensed shapes per arm,
+#:   terminal basis and stop state (condense.slaving_tables).
 ModelArrays = namedtuple("ModelArrays", [
-    "nq", "sc", "nm", "mo", "phi_bar", "phi_x", "m_ff", "k_ff", "phi_tip", "slope_0", "slope_L",
-    "phi_g", "x_g", "w_g", "mount", "order", "first"])
+    "nq", "sc", "nm", "ne", "cond", "mo", "phi_bar", "phi_x", "m_ff", "k_ff", "phi_tip", "slope_0", "slope_L",
+    "phi_g", "x_g", "w_g", "mount", "order", "first", "sl_T", "sl_c", "sl_dw", "sl_cols", "sl_ncol"])
 #: The switching part: basis[i] of each link, grasp_on[k], held points rho_G[k] (target frame).
 Switches = namedtuple("Switches", ["basis", "grasp_on", "rho_G"])
 

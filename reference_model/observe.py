@@ -24,8 +24,9 @@ from rsmcheck.core.geometry import rot
 
 def momentum_of_state(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> np.ndarray:
     """(p_x, p_y, L_z): linear momentum and angular momentum about O of base, links, target
-    (`measures.momentum`, exactly from the modal integrals)."""
-    return momentum(np.asarray(x, float), *model.core_args(cfg))
+    (`measures.momentum`, exactly from the modal integrals; condensed static shapes at
+    their values for the rest of x)."""
+    return momentum(model.complete(x, cfg), *model.core_args(cfg))
 
 
 def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Configuration,
@@ -35,9 +36,12 @@ def energy_of_state(model: ReferenceModel, x: np.ndarray, u: np.ndarray, cfg: Co
     kinetic       ½ Ẏᵀ M_g Ẏ + ½ Σ B_m θ̇_m²        (M_g of eq. 6 is the exact kinetic metric)
     elastic       ½ Σ aᵀ K_ff a + ½ Σ K_m (θ_m − ψ_J)² + ½ k_w (|ψ_w| − ψ_lim)² beyond the stops
     gravitational tidal potential about O (orbit on), Gauss points along the links
+
+    Condensed static shapes (condense.py) are taken at their values for the rest of x.
     """
     lay = model.layout
     prm = model.params
+    x = model.complete(x, cfg)
     Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
     kinetic = 0.5 * Yd @ Mg @ Yd + 0.5 * prm.motor.inertia * np.sum(x[lay.motors_d] ** 2)
     q = x[lay.q]
@@ -85,8 +89,11 @@ def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
 
 
 def sensors(model: ReferenceModel, t: float, x: np.ndarray, cfg: Configuration) -> Sensors:
-    """What the shared driver's controllers and supervisor read at time t (rsmcheck.core.engine.Sensors)."""
+    """What the shared driver's controllers and supervisor read at time t (rsmcheck.core.engine.Sensors);
+    condensed static shapes at their values for the rest of x (so that a perturbed state
+    reads right, `modes.linear_plant`)."""
     lay = model.layout
+    x = model.complete(x, cfg)
     q, qd = x[lay.q], x[lay.qd]
     rE, rEd, psi, psid, psi_w, com, m = sensor_values(x, *model.core_args(cfg))
     c, s = math.cos(q[2]), math.sin(q[2])
@@ -112,10 +119,15 @@ def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, c
     """
     lay = model.layout
     prm = model.params
+    x = model.complete(x, cfg)  # condensed static shapes at their values for the rest of x
     q = x[lay.q]
     XT = x[lay.target]
     Mg, f, A, phi, _, Bs, _, _, _, _ = model.assemble(x, u, cfg)
-    _, Rc = solve_constrained(Mg, f, A, Bs, model.arrays)
+    if model.condensed:  # the accelerations (and R_cl) of the coordinates left, condense.py
+        Mz, fz, Az, _, _, Bs, *_ = model.reduced(x, u, cfg)
+        _, Rc = solve_constrained(Mz, fz, Az, Bs, model.arrays)
+    else:
+        _, Rc = solve_constrained(Mg, f, A, Bs, model.arrays)
     rE, rEd, psi_J, _, psi_w, com, msys = sensor_values(x, *model.core_args(cfg))
     AB_T = rot(q[2]).T
     rB = q[0:2]

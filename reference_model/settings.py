@@ -12,6 +12,8 @@ from rsmcheck.core.schema import choice, engine_table, flag, number
 
 #: the integrators (reference_model/stepper.py)
 INTEGRATORS = ("dopri5", "trbdf2", "imex")
+#: how the static correction shapes enter (reference_model/build.py STATIC_SHAPES)
+STATIC_SHAPES = ("condensed", "explicit", "off")
 #: eigenmodes per link unless a case says otherwise (the paper's two)
 N_MODES_DEFAULT = (2,) * 6
 
@@ -23,7 +25,9 @@ class ReferenceSettings:
     quiet_integrator)."""
 
     n_modes: tuple[int, ...] = N_MODES_DEFAULT  # eigenmodes per link, arm 1 then arm 2
-    static_modes: bool | None = None  # static correction shapes (docs/physics.md §2.4)
+    #: static correction shapes (docs/physics.md §2.4): "condensed", "explicit", "off", or a
+    #: flag (true: condensed, false: off)
+    static_modes: bool | str | None = None
     h_max: float | None = None  # largest integration step [s]
     #: the integrator of the control intervals longer than [solver] control_period (the
     #: quiet segments' own control_period, docs/physics.md §7); None: `integrator`
@@ -50,7 +54,7 @@ def parse(tables: Mapping[str, Mapping[str, Any]], solver: Mapping[str, Any], wh
     w = where
     t = engine_table(w, key("reference"), tables.get("reference", {}), {
         "n_modes": lambda k, x: _modes(w, k, x),
-        "static_modes": lambda k, x: flag(w, k, x),
+        "static_modes": lambda k, x: flag(w, k, x) if isinstance(x, bool) else choice(w, k, x, STATIC_SHAPES),
         "h_max": lambda k, x: number(w, k, x, 0.0, lo_open=True, hi=1.0),
         "quiet_integrator": lambda k, x: choice(w, k, x, INTEGRATORS),
     }, needs_why=("h_max", "quiet_integrator"))

@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 
 
-def elimination_order(nq, nm, mo):
+def elimination_order(nq, nm, mo, n_dynamic=None, rotors=False):
     """Order of the rows of Mg for its Cholesky factor, and the envelope of each row.
 
     Mg couples the base with both arms and each arm with itself, but never the two arms
@@ -20,10 +20,20 @@ def elimination_order(nq, nm, mo):
     arm 1 (joints, amplitudes), arm 2, base, target, the factor has no fill-in outside the
     envelope `first[r]` ≤ column ≤ r: a quarter of the dense work at 4 shapes per link.
     Returns (order, first): row r of the ordered matrix is row order[r] of Mg.
+
+    With the static shapes slaved (condense.py) the matrix is M_z over z = [Y, θ_m]:
+    n_dynamic[i] ≤ nm[i] are the leading shapes of link i that are coordinates (the
+    others are left out of the order), `rotors` puts each arm's three rotors (rows ny +
+    3k + s) at the end of its block (the slaved shapes couple them with their arm), and
+    the target's rows get the full envelope (a wrist beyond its stop slaves the shapes to
+    θ_T too).
     """
     ny = nq + 3
-    order = np.empty(ny, dtype=np.int64)
-    first = np.empty(ny, dtype=np.int64)
+    if n_dynamic is None:
+        n_dynamic = nm
+    size = ny - int(np.sum(nm)) + int(np.sum(n_dynamic)) + (6 if rotors else 0)
+    order = np.empty(size, dtype=np.int64)
+    first = np.empty(size, dtype=np.int64)
     r = 0
     for k in range(2):
         start = r
@@ -32,17 +42,21 @@ def elimination_order(nq, nm, mo):
             r += 1
         for s in range(3):
             i = 3 * k + s
-            for a in range(nm[i]):
+            for a in range(n_dynamic[i]):
                 order[r] = mo[i] + a
+                r += 1
+        if rotors:
+            for s in range(3):
+                order[r] = ny + 3 * k + s
                 r += 1
         first[start:r] = start
     for d in range(3):  # the base couples with everything before it
         order[r] = d
         first[r] = 0
         r += 1
-    for d in range(3):  # the target is diagonal
+    for d in range(3):  # the target is diagonal (coupled to everything when slaved)
         order[r] = nq + d
-        first[r] = r
+        first[r] = 0 if rotors else r
         r += 1
     return order, first
 
@@ -52,8 +66,9 @@ def _cholesky(A, order, first, Lc):
     """Lc ← the Cholesky factor of the symmetric positive definite A in the elimination
     order of `elimination_order`: Lc Lcᵀ = P A Pᵀ (row r of P A is row order[r] of A), row
     by row, with entries only inside the envelope first[r] ≤ column ≤ r (the rest of Lc is
-    not touched).  False if A is not positive definite."""
-    n = A.shape[0]
+    not touched); A's rows and columns outside `order` are not read.  False if the
+    ordered A is not positive definite."""
+    n = order.shape[0]
     for r in range(n):
         o_r = order[r]
         f_r = first[r]
@@ -104,12 +119,16 @@ def solve_constrained(Mg, f, G, Bs, m):
         G Mg⁻¹ Gᵀ = Zᵀ Z,   G Mg⁻¹ f = Zᵀ y,   Ÿ = Pᵀ L⁻ᵀ (y − Z R_cl),
     one forward substitution for [y, Z] and a single back substitution; the small system
     Zᵀ Z R_cl = Zᵀ y − B* is solved by its own (dense) Cholesky factor.
+
+    Only the coordinates in the elimination order take part (`elimination_order`): with
+    the static shapes slaved (condense.py) Mg, f, G are those of z = [Y, θ_m]
+    (`system.assemble_reduced`) and the shapes' entries of the result are 0.
     """
     nc = G.shape[0]
-    ny = Mg.shape[0]
+    ny = m.order.shape[0]
     order = m.order
     Lc = np.empty((ny, ny))
-    ydd = np.empty(ny)
+    ydd = np.zeros(Mg.shape[0])
     Rcl = np.empty(nc)
     if not _cholesky(Mg, order, m.first, Lc):
         ydd[:] = np.nan  # not positive definite: the caller sees a non-finite state

@@ -88,6 +88,8 @@ class ImexWork:
         arrays = model.arrays
         k_diag, m_diag = [], []
         for i, n in enumerate(lay.n_modes):
+            if model.condensed:
+                n = model.n_eigen[i]  # the condensed static shapes are not states
             b = cfg.basis[i]
             k_diag.append(np.diag(arrays.k_ff[i, b])[:n])
             m_diag.append(np.diag(arrays.m_ff[i, b])[:n])

@@ -55,6 +55,8 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     old = int(cfg.basis[link])
     if old == new:
         return SwitchReport(0.0, 0.0, 0.0)
+    if model.condensed:
+        x[:] = model.complete(x, cfg)  # the slaved static shapes at their values (condense.py)
     n = lay.n_modes[link]
     lk = model.params.link
     L, rho = lk.length, lk.rho_a
@@ -77,6 +79,9 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     s0, sd0 = (slope_old @ q[sl], slope_old @ qd[sl]) if n else (0.0, 0.0)
     kin = model.kinematics(q, qd, cfg)
     th_old, om = kin.th[link], kin.om[link]
+    # slaved static shapes (condense.py) of the arm's other links follow the switch too
+    arm_links = [i for i in range(3 * (link // 3), 3 * (link // 3) + 3) if i != link] if model.condensed else []
+    fields_before = {i: link_velocity_field(model, x, cfg, i, xi) for i in arm_links}
 
     if new == PP:
         delta = math.atan2(w_L, L)
@@ -121,6 +126,10 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     x[joint] += delta
     x[lay.ns + joint] += om_new - om
     cfg.basis[link] = new
+    if model.condensed:
+        # slaved static shapes (condense.py) take their values in the new basis: the field
+        # kept, and with it the residual and the dropped momentum below, is that one
+        x[:] = model.complete(x, cfg)
 
     # the velocity field before and after, at the same material points ξ (inertial axes):
     # ṙ(ξ) = Ṙ + A(θ)(−θ̇ w, θ̇ ξ + ẇ); the pin velocity Ṙ is the same in both
@@ -140,8 +149,44 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
                                        + lk.inertia_extra * (om - om_new)))
     if n:
         dropped[sl] += rho * (phi_new.T * wq) @ (n_new @ r)
+    for i in arm_links:
+        dropped += link_dropped_momentum(model, x, cfg, i, xi, wq, fields_before[i])
     # the transverse part n'·r is the rate residual ẇ' − Φ_new ȧ' of the least squares
     return SwitchReport(delta, res_p, float(np.max(np.abs(n_new @ r))), dropped)
+
+
+def link_velocity_field(model: ReferenceModel, x: np.ndarray, cfg: Configuration, i: int,
+                        xi: np.ndarray) -> np.ndarray:
+    """ṙ(ξ) (2 × len(ξ), inertial) of link i's material points: Ṙ + A(θ)(−θ̇ w, θ̇ ξ + ẇ)."""
+    lay = model.layout
+    kin = model.kinematics(x[lay.q], x[lay.qd], cfg)
+    phi = model.bases[i][int(cfg.basis[i])].shapes(xi)
+    sl = lay.modes(i)
+    w = phi @ x[lay.q][sl] if lay.n_modes[i] else np.zeros_like(xi)
+    wd = phi @ x[lay.qd][sl] if lay.n_modes[i] else np.zeros_like(xi)
+    om = kin.om[i]
+    return kin.Rd[i][:, None] + rot(kin.th[i]) @ np.array([-om * w, om * xi + wd])
+
+
+def link_dropped_momentum(model: ReferenceModel, x: np.ndarray, cfg: Configuration, i: int,
+                          xi: np.ndarray, wq: np.ndarray, before: np.ndarray) -> np.ndarray:
+    """The generalised momentum over Ẏ of link i's velocity residual r = ṙ_before − ṙ(x):
+    p = ∫ρ r·∂ṙ/∂Ẏ dξ (as `switch_basis` for the switched link), for a link whose slaved
+    static shapes the switch moved (condense.py)."""
+    lay = model.layout
+    rho = model.params.link.rho_a
+    r = before - link_velocity_field(model, x, cfg, i, xi)
+    kin = model.kinematics(x[lay.q], x[lay.qd], cfg)
+    phi = model.bases[i][int(cfg.basis[i])].shapes(xi)
+    sl = lay.modes(i)
+    w = phi @ x[lay.q][sl] if lay.n_modes[i] else np.zeros_like(xi)
+    turn = rot(kin.th[i]) @ np.array([-w, xi])
+    n_i = np.array([-math.sin(kin.th[i]), math.cos(kin.th[i])])
+    p = np.zeros(lay.ny)
+    p[:lay.nq] = kin.JR[i].T @ (rho * (r @ wq)) + kin.Jth[i] * (rho * np.sum(wq * np.sum(r * turn, axis=0)))
+    if lay.n_modes[i]:
+        p[sl] += rho * (phi.T * wq) @ (n_i @ r)
+    return p
 
 
 def capture(model: ReferenceModel, x: np.ndarray, cfg: Configuration, arm: int) -> dict[str, float]:
@@ -185,24 +230,51 @@ def project_velocities(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
     kinetic-energy metric of the whole system.  All impulses are internal (the field's own,
     J_extra's on its frame, the grasps' Aᵀλ): linear and angular momentum are conserved.
     With nothing dropped and a grasp just added it is the plastic impact of §4.2.
+    With the static shapes slaved (condense.py) the same over z = [Y, θ_m] in the metric
+    M_z (`ReferenceModel.reduced`): the dropped momentum on the shapes goes to z as Tᵀ p_s,
+    the rotors take part (the shapes couple them with their arm), and the shapes' rates
+    follow (`ReferenceModel.complete`).
     """
     lay = model.layout
-    Mg, _, A, *_ = model.assemble(x, np.zeros(N_INPUTS), cfg)
-    Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
+    if model.condensed:
+        Mz, _, Az, *_ = model.reduced(x, np.zeros(N_INPUTS), cfg)
+        r = np.sort(model.arrays.order)
+        Z = np.concatenate([x[lay.qd], x[lay.target_d], x[lay.motors_d]])
+        if dropped is not None:
+            _, T, idx = model.slaving(x, cfg)
+            p = np.concatenate([dropped, np.zeros(6)])
+            p += T[idx >= 0].T @ dropped[idx[idx >= 0]]
+            dropped_z = p[r]
+        M, A, Yd = Mz[np.ix_(r, r)], Az[:, r], Z[r]
+    else:
+        M, _, A, *_ = model.assemble(x, np.zeros(N_INPUTS), cfg)
+        Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
+        dropped_z = dropped
     if dropped is not None:
-        Yd = Yd + np.linalg.solve(Mg, dropped)
+        Yd = Yd + np.linalg.solve(M, dropped_z)
     if A.shape[0]:
         # Ẏ⁺ = Ẏ − M⁻¹Aᵀ(AM⁻¹Aᵀ)⁻¹AẎ
-        MinvAt = np.linalg.solve(Mg, A.T)
+        MinvAt = np.linalg.solve(M, A.T)
         Yd = Yd - MinvAt @ np.linalg.solve(A @ MinvAt, A @ Yd)
-    x[lay.qd] = Yd[:lay.nq]
-    x[lay.target_d] = Yd[lay.nq:]
+    if model.condensed:
+        Z[r] = Yd
+        x[lay.qd] = Z[:lay.nq]
+        x[lay.target_d] = Z[lay.nq:lay.ny]
+        x[lay.motors_d] = Z[lay.ny:]
+        x[:] = model.complete(x, cfg)
+    else:
+        x[lay.qd] = Yd[:lay.nq]
+        x[lay.target_d] = Yd[lay.nq:]
 
 
 def kinetic_energy(model: ReferenceModel, x: np.ndarray, cfg: Configuration) -> float:
     """½ Ẏᵀ M Ẏ [J]: base, links (J_extra included) and target; the rotors are not touched
-    by a switch."""
+    by a switch (with the static shapes slaved they are: ½ żᵀ M_z ż, rotors included)."""
     lay = model.layout
+    if model.condensed:
+        Mz = model.reduced(x, np.zeros(N_INPUTS), cfg)[0]
+        Z = np.concatenate([x[lay.qd], x[lay.target_d], x[lay.motors_d]])
+        return float(0.5 * Z @ Mz @ Z)
     Mg = model.assemble(x, np.zeros(N_INPUTS), cfg)[0]
     Yd = np.concatenate([x[lay.qd], x[lay.target_d]])
     return float(0.5 * Yd @ Mg @ Yd)

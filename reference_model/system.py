@@ -10,6 +10,7 @@ import math
 import numpy as np
 from numba import njit
 
+from reference_model.condense import condense, project, reduced_mass
 from reference_model.field import tidal
 from reference_model.kinematics import joint_section_angles, kinematics, wrist_angles
 from reference_model.link import link_field_force, link_newton
@@ -237,7 +238,39 @@ def assemble(x, u, m, sw):
     the active constraint rows G (nc×ny), φ (nc), φ̇ (nc), B* (nc) of eqs. (8)–(12),
     the motor accelerations of eq. (2), the joint torques u_J of eq. (5) and the wrist
     torques, and the acceleration of the reference point.
+
+    With the static shapes condensed (condense.py) their amplitudes and rates in x are not
+    read: they are solved for first, and the force on them is passed on at the end (on
+    f and the rotors' θ̈_m); Mg is the mass matrix of all of Y (`assemble_reduced`: of the
+    coordinates left).
     """
+    return _assemble(x, u, m, sw)[:10]
+
+
+@njit(cache=True)
+def assemble_reduced(x, u, m, sw):
+    """The coupled system over z = [Y, θ_m] with the static shapes slaved (condense.py):
+    (M_z, f_z, G_z, φ, φ̇, B*, u_J, τ_w, a_O), M_z = Pᵀ blockdiag(M_g, B_m I) P, f_z = [f,
+    B_m θ̈_m] of `assemble` (which holds Tᵀ f_s already), G_z = [G, 0]; rows and columns of
+    the static shapes zero.  What `solve.solve_constrained` takes with the elimination order
+    of a condensed model (its z̈: Ÿ, then θ̈_m)."""
+    Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO, T, cols, ncol, idx = _assemble(x, u, m, sw)
+    ny = m.nq + 3
+    Mz = reduced_mass(Mg, T, cols, ncol, idx, m)
+    fz = np.empty(ny + 6)
+    fz[:ny] = f
+    for j in range(6):
+        fz[ny + j] = m.sc[S_BM] * thmdd[j]
+    Gz = np.zeros((G.shape[0], ny + 6))
+    Gz[:, :ny] = G
+    return Mz, fz, Gz, phi, phid, Bs, uJ, tauw, aO
+
+
+@njit(cache=True)
+def _assemble(x, u, m, sw):
+    """`assemble`, and the slaving of the static shapes (T, cols, ncol, idx of
+    `condense.condense`)."""
+    x, T, cols, ncol, idx = condense(x, m, sw)
     nq = m.nq
     sc = m.sc
     ny = nq + 3
@@ -269,6 +302,7 @@ def assemble(x, u, m, sw):
     uJ, thmdd = _joint_rows(f, q, qd, thm, thmd, u, m, sw.basis)
     _target_rows(Mg, f, XT, rO, aunif, nq, sc)
     G, phi, phid, Bs, tauw = _grasp_rows(f, q, qd, XT, XTd, kin, m, sw)
+    project(f, thmdd, T, cols, ncol, idx, m)
 
     aO = athr.copy()
     if sc[S_ORBIT] != 0.0:
@@ -276,4 +310,4 @@ def assemble(x, u, m, sw):
         r3 = r2 * math.sqrt(r2)
         aO[0] += -sc[S_MU] * rO[0] / r3
         aO[1] += -sc[S_MU] * rO[1] / r3
-    return Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO
+    return Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO, T, cols, ncol, idx

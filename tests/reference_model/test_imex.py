@@ -115,7 +115,7 @@ def test_the_implicit_part_is_l_stable():
 @pytest.mark.parametrize("n_modes, per_link", [(2, [2, 3]), (4, [3, 4, 5])])
 def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(ringing_chain, n_modes, per_link):
     case = ringing_chain
-    engine = ReferenceEngine(case, integrator="imex", n_modes=n_modes)
+    engine = ReferenceEngine(case, integrator="imex", n_modes=n_modes, static_modes="explicit")
     lay = engine.model.layout
     expected = [lay.mode_offset[i] + j for i in range(6) for j in per_link]
     np.testing.assert_array_equal(engine.stepper.imex.stiff, np.r_[expected, np.add(expected, lay.ns)])
@@ -130,11 +130,11 @@ def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(
 # ---- the integration ---------------------------------------------------------------
 def test_imex_agrees_with_dopri5_and_its_error_shrinks_with_rtol(ringing_chain):
     case = ringing_chain
-    exact = _advance(ReferenceEngine(case, integrator="dopri5", rtol=1e-11), 0.2, 1e-3, tau=10.0)
-    lay = ReferenceEngine(case).model.layout
+    exact = _advance(ReferenceEngine(case, integrator="dopri5", rtol=1e-11, static_modes="explicit"), 0.2, 1e-3, tau=10.0)
+    lay = ReferenceEngine(case, static_modes="explicit").model.layout
     errors = []
     for rtol in (1e-5, 1e-7):
-        x = _advance(ReferenceEngine(case, integrator="imex", rtol=rtol), 0.2, 1e-3, tau=10.0)
+        x = _advance(ReferenceEngine(case, integrator="imex", rtol=rtol, static_modes="explicit"), 0.2, 1e-3, tau=10.0)
         errors.append(max(np.max(np.abs(x[lay.q][:9] - exact[lay.q][:9])),  # rigid [m, rad]
                           np.max(np.abs(x[lay.q][9:] - exact[lay.q][9:]))))  # amplitudes [m]
     assert errors[1] < 1e-8, errors
@@ -148,7 +148,7 @@ def test_one_step_per_control_sample_where_the_explicit_pair_needs_two():
     case = load_case("p1_transport")
     runs = {}
     for integrator in ("imex", "dopri5"):
-        engine = ReferenceEngine(case, integrator=integrator)
+        engine = ReferenceEngine(case, integrator=integrator, static_modes="explicit")
         runs[integrator] = (engine, runner.run(engine, case, duration=0.3))
     (imex_engine, imex_run), (dp5, dp5_run) = runs["imex"], runs["dopri5"]
     assert imex_engine.steps <= 302 and imex_engine.rejected == 0, (imex_engine.steps, imex_engine.rejected)
@@ -161,7 +161,7 @@ def test_one_step_per_control_sample_where_the_explicit_pair_needs_two():
 
 def test_a_change_of_the_system_forces_a_new_L(ringing_chain):
     case = ringing_chain
-    engine = ReferenceEngine(case, integrator="imex")
+    engine = ReferenceEngine(case, integrator="imex", static_modes="explicit")
     _advance(engine, 0.01, 1e-3)
     assert engine.stepper.imex.work[imex.W_JACOBIANS] == 1
     engine.release(1)
@@ -182,7 +182,7 @@ def test_the_quiet_segments_go_to_the_quiet_integrator():
     assert case.engine_settings["reference"].quiet_integrator == "imex"
     runs, late_steps, x_at_shutdown = {}, {}, {}
     for quiet in ("imex", "dopri5"):
-        engine = ReferenceEngine(case, quiet_integrator=quiet)
+        engine = ReferenceEngine(case, quiet_integrator=quiet, static_modes="explicit")
         advance, steps = engine.advance, []
 
         def logged(t_next, inputs, engine=engine, advance=advance, steps=steps):

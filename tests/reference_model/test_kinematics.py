@@ -33,7 +33,7 @@ GRASPS = [(0, 0), (1, 0), (0, 1), (1, 1)]
 
 @pytest.fixture(scope="module")
 def model() -> ReferenceModel:
-    return ReferenceModel(Params(), (2, 3, 2, 1, 2, 4))
+    return ReferenceModel(Params(), (2, 3, 2, 1, 2, 4), static_modes="explicit")
 
 
 def random_state(model: ReferenceModel, rng: np.random.Generator, amp: float = 0.02):
@@ -217,7 +217,7 @@ def test_velocity_forces_are_lagranges_from_the_mass_matrix():
     from rsmcheck.core.params import Params as P
 
     prm = P.from_overrides({"link": {"damping_ratio": 0.0}, "motor": {"damping": 0.0}}, "test")
-    mdl = ReferenceModel(prm, (2, 3, 2, 1, 2, 4))
+    mdl = ReferenceModel(prm, (2, 3, 2, 1, 2, 4), static_modes="explicit")
     lay = mdl.layout
     u = np.zeros(N_INPUTS)
     rng = np.random.default_rng(31)

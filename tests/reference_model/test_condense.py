@@ -1,0 +1,131 @@
+"""The condensed static shapes (reference_model/condense.py, docs/physics.md §2.4).
+
+Condensed, each arm's static amplitudes are the equilibrium of its springs given the rest
+of the state, their rates its time derivative (a_s = T y), and the force left on them
+goes to y as Tᵀ f_s.  Checked here against the other formulation in the same package,
+the explicit Ritz shapes of `system.assemble` (their rows of f are the shapes' own
+equilibrium), and against the two invariants a massless slaved coordinate must keep:
+its generalised forces derive from the condensed potential (test_end_couples.py) and its
+damping dissipates exactly what the full model's damping would at ȧ_s = T ẏ.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reference_model.beam_modes import PP
+from reference_model.build import Configuration, ReferenceModel, terminal_basis
+from reference_model.model_arrays import N_INPUTS
+from rsmcheck.core.params import Params
+
+PARAMS = Params()
+
+
+def loaded_state(model: ReferenceModel, wrist_over: float, seed: int = 11):
+    """Arm 1 holding the target, links bent, every rotor off its section angle by 3e-4 rad,
+    arm 1's wrist `wrist_over` rad beyond its upper stop (negative: inside the range)."""
+    lay = model.layout
+    rng = np.random.default_rng(seed)
+    grasp = (1, 0)
+    cfg = Configuration(grasp_on=np.array(grasp), rho_G=np.zeros((2, 2)), basis=terminal_basis(grasp))
+    x = model.zero_state()
+    x[3:9] = np.radians([60, -120, 60, -60, 120, -60])
+    for i in range(6):
+        x[lay.modes(i)][:model.n_eigen[i]] = 2e-5 * rng.normal(size=model.n_eigen[i])
+    psi, _ = model.joint_section_angles(x[lay.q], x[lay.qd], cfg)
+    x[lay.motors] = psi + 3e-4 * rng.choice([-1.0, 1.0], size=6)
+    th3 = model.kinematics(x[lay.q], x[lay.qd], cfg).th[2]
+    slope_L = model.bases[2][PP].slope_L[:model.n_eigen[2]] @ x[lay.q][lay.modes(2)][:model.n_eigen[2]]
+    x[lay.target] = [5.0, 0.5, th3 + slope_L + PARAMS.wrist.limit + wrist_over]
+    return x, cfg, rng
+
+
+@pytest.mark.parametrize("wrist_over", [-0.1, 0.05])
+def test_condensed_shapes_are_the_explicit_shapes_static_equilibrium(wrist_over):
+    """The explicit model's own rows for the static shapes (−K a + the joint springs' and
+    the stop's torques on the end slopes), at rest and at the condensed amplitudes: zero,
+    while each of their terms is of the joint torques' size."""
+    explicit = ReferenceModel(PARAMS, 2, static_modes="explicit")
+    condensed = ReferenceModel(PARAMS, 2, static_modes="condensed")
+    x, cfg, _ = loaded_state(condensed, wrist_over)
+    xc = condensed.complete(x, cfg)
+    lay = condensed.layout
+    static = np.setdiff1d(np.arange(lay.nq), condensed.coordinates)
+    assert static.size == 12 and np.abs(xc[static]).min() > 0.0
+    f = explicit.assemble(xc, np.zeros(N_INPUTS), cfg)[1]
+    load = np.abs(explicit.assemble(xc, np.zeros(N_INPUTS), cfg)[7]).max()  # |u_J| [N·m]
+    assert load > 1.0
+    assert np.abs(f[static]).max() <= 1e-9 * load, f[static]
+    # the slots of x are not read: any values there give the same completed state
+    x[static] = 1.0
+    assert np.array_equal(condensed.complete(x, cfg), xc)
+
+
+@pytest.mark.parametrize("wrist_over", [-0.1, 0.05])
+def test_condensed_damping_dissipates_what_the_full_model_does(wrist_over):
+    """Power of the velocity-odd generalised forces on y (and the rotors) = −(dissipation of
+    the full model at ȧ_s = T ẏ): Kelvin–Voigt η ȧᵀK_ff ȧ over every shape, the joint
+    dampers C_m (ψ̇_J − θ̇_m)², and the stop's damping where engaged (the odd part of the
+    wrist torque times ψ̇_w).  The inertial forces are even in the velocities, so
+    (F(v) − F(−v))/2 is the damping alone."""
+    model = ReferenceModel(PARAMS, 2, static_modes="condensed")
+    lay = model.layout
+    x, cfg, rng = loaded_state(model, wrist_over)
+    r = model.coordinates
+    u = np.zeros(N_INPUTS)
+    v = np.zeros(lay.nx)
+    for c in r:  # every coordinate with mass, the target's too
+        v[lay.ns + c] = (1e-5 if 9 <= c < lay.nq else 1e-3) * rng.normal()
+    v[lay.motors_d] = 1e-3 * rng.normal(size=6)
+
+    def forces(sign):
+        xx = x.copy()
+        xx[lay.ns:2 * lay.ns] = sign * v[lay.ns:2 * lay.ns]
+        out = model.assemble(xx, u, cfg)
+        return out[1][r], PARAMS.motor.inertia * out[6], out[8][0]
+
+    fp, mp, tp = forces(1.0)
+    fm, mm, tm = forces(-1.0)
+    yd = v[lay.ns:lay.ns + lay.ny][r]
+    power = 0.5 * (fp - fm) @ yd + 0.5 * (mp - mm) @ v[lay.motors_d]
+    # the full model's dissipation at the condensed rates
+    xc = model.complete(x.copy() + v, cfg)
+    qd = xc[lay.qd]
+    eta, cm = PARAMS.link.kelvin_voigt_eta, PARAMS.motor.damping
+    dissipation = 0.0
+    for i in range(6):
+        ad = qd[lay.modes(i)]
+        dissipation += eta * ad @ model.arrays.k_ff[i, cfg.basis[i], :len(ad), :len(ad)] @ ad
+    _, psid = model.joint_section_angles(xc[lay.q], qd, cfg)
+    dissipation += cm * np.sum((psid - xc[lay.motors_d]) ** 2)
+    kin = model.kinematics(xc[lay.q], qd, cfg)
+    wd = xc[lay.target_d][2] - kin.om[2] - model.bases[2][PP].slope_L @ qd[lay.modes(2)]
+    stop_power = 0.5 * (tp - tm) * wd
+    assert (stop_power != 0.0) == (wrist_over > 0)
+    assert dissipation > 0.0
+    assert power == pytest.approx(-dissipation + stop_power, rel=1e-6), (power, dissipation, stop_power)
+
+
+def test_slaved_shapes_keep_their_mass():
+    """The kinetic energy of z = [Y, θ_m] in M_z (Guyan) equals that of the completed
+    state in the full metric, ½ ẎᵀM_gẎ + ½ B_m Σθ̇_m², at ȧ_s = T ż; and M_z couples the
+    rotors to their arm only through the shapes (zero without them)."""
+    model = ReferenceModel(PARAMS, 2, static_modes="condensed")
+    lay = model.layout
+    x, cfg, rng = loaded_state(model, 0.05)
+    x[lay.ns:2 * lay.ns] = 1e-3 * rng.normal(size=lay.ns)
+    xc = model.complete(x, cfg)
+    Mz = model.reduced(x, np.zeros(N_INPUTS), cfg)[0]
+    Mg = model.assemble(x, np.zeros(N_INPUTS), cfg)[0]
+    Z = np.concatenate([xc[lay.qd], xc[lay.target_d], xc[lay.motors_d]])
+    static = np.setdiff1d(np.arange(lay.ny), model.coordinates)
+    Z[static] = 0.0
+    Yd = xc[lay.ns:lay.ns + lay.ny]
+    full = 0.5 * Yd @ Mg @ Yd + 0.5 * PARAMS.motor.inertia * np.sum(xc[lay.motors_d] ** 2)
+    assert 0.5 * Z @ Mz @ Z == pytest.approx(full, rel=1e-12)
+    assert np.abs(Mz[static]).max() == 0.0 and np.abs(Mz[:, static]).max() == 0.0
+    assert len(model.coordinates) == lay.ny - 12
+    rotor_arm = Mz[lay.ny:lay.ny + 3, 3:6]  # arm 1's rotors with its joints
+    assert np.abs(rotor_arm).max() > 0.0
+    assert np.abs(Mz[lay.ny:lay.ny + 3, lay.ny + 3:]).max() == 0.0  # not with arm 2's rotors
