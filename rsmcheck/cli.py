@@ -20,7 +20,7 @@ from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.orchestration import bench, compare, executor, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
-from rsmcheck.core.plugins import available, engine_names, plugin, plugins, require
+from rsmcheck.core.plugins import CAPABILITIES, available, engine_names, plugin, plugins, require
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
 
@@ -54,8 +54,7 @@ def _cmd_engines(args: argparse.Namespace) -> int:
     """`rsmcheck engines`: every registered plug-in, what it offers and whether it can run."""
     for name, p in plugins().items():
         role = "simulates" if p.simulates else "checks"
-        caps = [c for c in ("linear_plant", "coupled_frequencies", "link_frequencies", "rhs_timing", "rigid_checks",
-                            "aba_timing") if getattr(p, c, None) is not None]
+        caps = [c for c in CAPABILITIES if getattr(p, c, None) is not None]
         state = "available" if available(name) else (
             f"NOT INSTALLED: pip install 'rsmcheck[{p.extra}]'" if p.extra else "NOT INSTALLED")
         tables = ", ".join(f"[{t}]" for t in p.tables) or "-"
