@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
-from rsmcheck.orchestration import bench, compare, executor, gate
+from rsmcheck.orchestration import bench, budget, compare, executor, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import CAPABILITIES, available, engine_names, plugin, plugins, require
@@ -180,6 +180,42 @@ def _cmd_check(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _budget_cases(names: Sequence[str]) -> list:
+    """The cases named (each validated before anything runs), or every stand-alone case
+    whose variant has [compare] rows."""
+    if names:
+        return [load_case(n) for n in names]
+    cases = [load_case(p) for p in list_cases()]
+    return [c for c in cases if not c.phases and c.variant(True).has_initial and c.variant(True).compare]
+
+
+def _cmd_budget(args: argparse.Namespace) -> int:
+    out = output_file(args.out, "--out")  # before anything runs: a directory there is a bad input
+    previous = budget.read_document(out)  # and so is a file that is not a budget document
+    cases = _budget_cases(args.case)
+    engines = _engine_names(args.engines, "--engines")
+    if len(engines) < 2:
+        raise InputError("--engines", args.engines, "a budget compares two or more engines")
+    results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2)
+    for cb in results:
+        print("\n".join(budget.table_lines(cb)))
+    if args.suggest:
+        print(f"Suggested tolerances ({budget.RULES['suggested_tolerance']}):")
+        for cb in results:
+            lines = budget.suggestion_lines(cb)
+            if lines:
+                print("\n".join(lines))
+    rows = [r for cb in results for r in cb.rows]
+    if rows:
+        budget.write_document(out, budget.document(results, args.short, previous))
+    print(budget.summary(results) + (f"; wrote {out}" if rows else ""))
+    if not rows:
+        sys.stderr.write("rsmcheck: nothing was budgeted (no case with [compare] rows could be measured)\n")
+        return 1
+    failed = any(cb.failures for cb in results)
+    return 1 if failed or any(r.verdict == "tight" for r in rows) else 0
+
+
 def _cmd_modes(args: argparse.Namespace) -> int:
     # lazy: at the top its scipy would add ≈ 0.5 s to every command (`rsmcheck --help` takes 0.4 s)
     from rsmcheck.orchestration.modes import arm_rows, link_rows
@@ -289,6 +325,7 @@ def _cmd_bless(args: argparse.Namespace) -> int:
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "bench": _cmd_bench,
     "bless": _cmd_bless,
+    "budget": _cmd_budget,
     "gate": _cmd_gate,
     "cases": _cmd_cases,
     "check": _cmd_check,
@@ -299,8 +336,8 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
 }
 
 
-SCHEDULER_HELP = (f"run the jobs of check, gate, bless, report and bench on the Dask cluster whose scheduler "
-                  f"is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this machine's "
+SCHEDULER_HELP = (f"run the jobs of check, budget, gate, bless, report and bench on the Dask cluster whose "
+                  f"scheduler is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this machine's "
                   f"processes; docs/cluster.md)")
 CASES_DIR_HELP = (f"also read the case files of folder DIR (repeatable; before or after the command; "
                   f"${CASES_ENV} too, {os.pathsep}-separated); a name in two folders is an error")
@@ -350,6 +387,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rerun", action="store_true", help="with --out: run again even what is stored and current")
     p.add_argument("--serial", action="store_true",
                    help="run the engines one after the other in this process (default: 2 processes)")
+    p = sub.add_parser("budget", help="each [compare] row's error budget: the engines' difference plus each "
+                                      "one's integration error (docs/cases.md §1)")
+    p.add_argument("case", nargs="*", help="case names (default: every stand-alone case with a [compare] table)")
+    p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
+    p.add_argument("--out", default=budget.DEFAULT_OUT,
+                   help=f"the JSON document; its other cases are kept (default: {budget.DEFAULT_OUT})")
+    p.add_argument("--engines", metavar="A,B", help="the engines, the model under test first "
+                                                     "(default: the default engines, `rsmcheck engines`)")
+    p.add_argument("--suggest", action="store_true",
+                   help=f"print each row's suggested tolerance ({budget.SUGGEST_FACTOR:g} x budget) and why")
+    p.add_argument("--serial", action="store_true",
+                   help="run one after the other in this process (default: 2 processes)")
     p = sub.add_parser("modes", help="link and arm eigenfrequencies: analytic, reference, Exudyn")
     p.add_argument("--json", action="store_true", help="one JSON object {\"links\": [...], \"arms\": [...]}")
     p.add_argument("--engines", metavar="A,B", help="the engines (default: the default engines)")
@@ -399,7 +448,7 @@ DELEGATED = {"bench"}
 LISTINGS = {"cases", "modes"}
 
 #: commands whose runs go through rsmcheck.orchestration.runs.run_jobs (--scheduler)
-JOB_COMMANDS = {"check", "gate", "bless", "report"}
+JOB_COMMANDS = {"check", "budget", "gate", "bless", "report"}
 
 
 #: the global options that take a value, taken out of the arguments before the command is
