@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
-from rsmcheck.orchestration import bench, budget, compare, executor, gate
+from rsmcheck.orchestration import bench, budget, case_edit, compare, executor, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import CAPABILITIES, available, engine_names, plugin, plugins, require
@@ -196,24 +196,40 @@ def _cmd_budget(args: argparse.Namespace) -> int:
     engines = _engine_names(args.engines, "--engines")
     if len(engines) < 2:
         raise InputError("--engines", args.engines, "a budget compares two or more engines")
+    if args.apply and len(engines) != 2:
+        raise InputError("--apply", ",".join(engines), "writes the rows of one pair of engines: name two")
     results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2)
+    source = args.out
     for cb in results:
         print("\n".join(budget.table_lines(cb)))
     if args.suggest:
         print(f"Suggested tolerances ({budget.RULES['suggested_tolerance']}):")
         for cb in results:
-            lines = budget.suggestion_lines(cb)
+            lines = budget.suggestion_lines(cb, source)
             if lines:
                 print("\n".join(lines))
     rows = [r for cb in results for r in cb.rows]
     if rows:
-        budget.write_document(out, budget.document(results, args.short, previous))
+        budget.write_document(out, budget.document(results, args.short, previous, source))
+    applied = set()
+    if args.apply:
+        for cb in results:
+            if not cb.rows:
+                continue
+            edit = case_edit.apply_rows(cb.case, args.short, budget.suggestions(cb, source))
+            applied |= {(cb.name, obs) for obs in edit.changed}
+            left = [r.observable for r in cb.rows if r.observable not in {*edit.changed, *edit.refused}]
+            print(f"{edit.path}: " + "; ".join(
+                [f"set {', '.join(edit.changed)}" if edit.changed else "nothing set"]
+                + [f"{obs} not set: {why}" for obs, why in edit.refused.items()]
+                + ([f"{', '.join(left)} not set: a run failed or a part of the budget is not measured or zero"]
+                   if left else [])))
     print(budget.summary(results) + (f"; wrote {out}" if rows else ""))
     if not rows:
         sys.stderr.write("rsmcheck: nothing was budgeted (no case with [compare] rows could be measured)\n")
         return 1
     failed = any(cb.failures for cb in results)
-    return 1 if failed or any(r.verdict == "tight" for r in rows) else 0
+    return 1 if failed or any(r.verdict == "tight" and (r.case, r.observable) not in applied for r in rows) else 0
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
@@ -337,8 +353,8 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
 
 
 SCHEDULER_HELP = (f"run the jobs of check, budget, gate, bless, report and bench on the Dask cluster whose "
-                  f"scheduler is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this machine's "
-                  f"processes; docs/cluster.md)")
+                  f"scheduler is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this "
+                  f"machine's processes; docs/cluster.md)")
 CASES_DIR_HELP = (f"also read the case files of folder DIR (repeatable; before or after the command; "
                   f"${CASES_ENV} too, {os.pathsep}-separated); a name in two folders is an error")
 
@@ -397,6 +413,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                      "(default: the default engines, `rsmcheck engines`)")
     p.add_argument("--suggest", action="store_true",
                    help=f"print each row's suggested tolerance ({budget.SUGGEST_FACTOR:g} x budget) and why")
+    p.add_argument("--apply", action="store_true",
+                   help="write each row's suggested tolerance and why into its case file (the two lines only)")
     p.add_argument("--serial", action="store_true",
                    help="run one after the other in this process (default: 2 processes)")
     p = sub.add_parser("modes", help="link and arm eigenfrequencies: analytic, reference, Exudyn")

@@ -148,7 +148,7 @@ class Budget:
         return (f"budget {_g(self.budget)}{self.unit}{bound}: {', '.join(parts)}; "
                 f"tolerance = {factor:g} × budget ({source})")
 
-    def as_dict(self, refinements: Mapping[str, str] | None = None) -> dict[str, Any]:
+    def as_dict(self, refinements: Mapping[str, str] | None = None, source: str = DEFAULT_OUT) -> dict[str, Any]:
         return {"case": self.case, "observable": self.observable, "metric": self.metric,
                 "engines": list(self.engines), "tolerance": self.tolerance,
                 "model_difference": json_number(self.model_difference),
@@ -157,7 +157,8 @@ class Budget:
                 "budget": json_number(self.budget), "complete": self.complete,
                 "margin": json_number(self.margin), "verdict": self.verdict,
                 "suggested_tolerance": self.suggested_tolerance(),
-                "suggested_why": self.suggested_why(refinements or {}) if self.suggested_tolerance() else None,
+                "suggested_why": self.suggested_why(refinements or {}, source=source) if self.suggested_tolerance()
+                else None,
                 "why": self.why}
 
 
@@ -298,8 +299,9 @@ def read_document(path: Path) -> dict[str, Any]:
     return doc
 
 
-def case_entry(cb: CaseBudget) -> dict[str, Any]:
-    """One case's part of the document: rows, runs, where and from what code."""
+def case_entry(cb: CaseBudget, source: str = DEFAULT_OUT) -> dict[str, Any]:
+    """One case's part of the document: rows, runs, where and from what code (`source`:
+    the document the rows' suggested whys cite)."""
     commit, dirty = git_commit()
     refinements = cb.refinements()
     return {"case": cb.name, "variant": variant_key(cb.short), "duration_s": cb.variant.duration,
@@ -309,17 +311,18 @@ def case_entry(cb: CaseBudget) -> dict[str, Any]:
             "scheduler": executor.scheduler_address(),
             "refinements": {e: r or None for e, r in refinements.items()},
             "not_measured": list(cb.not_measured), "failures": dict(cb.failures),
-            "runs": cb.runs, "rows": [r.as_dict(refinements) for r in cb.rows]}
+            "runs": cb.runs, "rows": [r.as_dict(refinements, source) for r in cb.rows]}
 
 
-def document(results: Sequence[CaseBudget], short: bool, previous: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def document(results: Sequence[CaseBudget], short: bool, previous: Mapping[str, Any] | None = None,
+             source: str = DEFAULT_OUT) -> dict[str, Any]:
     """The budget document: `previous` (`read_document`) with the cases of `results`
     replaced in their variant ("short" or "full"); the other cases kept as they were."""
     variants = {k: dict(v) for k, v in dict((previous or {}).get("variants", {})).items()}
     mine = variants.setdefault(variant_key(short), {})
     for cb in results:
         if not cb.skipped:
-            mine[cb.name] = case_entry(cb)
+            mine[cb.name] = case_entry(cb, source)
     variants[variant_key(short)] = dict(sorted(mine.items()))
     return {"format": FORMAT, "format_version": FORMAT_VERSION, "rules": RULES,
             "variants": dict(sorted(variants.items()))}
@@ -365,7 +368,7 @@ def table_lines(cb: CaseBudget) -> list[str]:
     return lines
 
 
-def suggestion_lines(cb: CaseBudget) -> list[str]:
+def suggestion_lines(cb: CaseBudget, source: str = DEFAULT_OUT) -> list[str]:
     """Each row's suggested tolerance and why (`Budget.suggested_tolerance`, `suggested_why`)."""
     refinements = cb.refinements()
     lines = []
@@ -376,8 +379,18 @@ def suggestion_lines(cb: CaseBudget) -> list[str]:
             lines.append(f"  {cb.name} {r.observable}{pair}: no suggestion (budget {_e(r.budget)})")
             continue
         lines.append(f"  {cb.name} {r.observable}{pair}: tolerance {r.tolerance:.2g} -> {tol:.2g}")
-        lines.append(f"      why = \"{r.suggested_why(refinements)}\"")
+        lines.append(f"      why = \"{r.suggested_why(refinements, source=source)}\"")
     return lines
+
+
+def suggestions(cb: CaseBudget, source: str = DEFAULT_OUT) -> dict[str, tuple[float, str]]:
+    """observable → (suggested tolerance, why) of the rows `--apply` may write: a case whose
+    runs all ran, one pair of engines, every part of the budget measured and not zero."""
+    if cb.failures or len(cb.engines) != 2:
+        return {}
+    refinements = cb.refinements()
+    return {r.observable: (tol, r.suggested_why(refinements, source=source)) for r in cb.rows
+            if r.complete and (tol := r.suggested_tolerance()) is not None}
 
 
 def summary(results: Sequence[CaseBudget]) -> str:

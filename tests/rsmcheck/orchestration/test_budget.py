@@ -9,11 +9,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import tomllib
 
 import numpy as np
 import pytest
 
 import rsmcheck.orchestration.budget as bud
+from rsmcheck.orchestration import case_edit
 from rsmcheck.cli import main
 from rsmcheck.core.cases import CompareSpec, load_case
 from rsmcheck.core.observables import allocate
@@ -149,7 +151,7 @@ def test_the_command_runs_each_engine_at_the_case_settings_and_refined(fake_engi
     for spec in case.compare:
         assert spec.observable in stdout
     assert "3 rows: 2 ok, 0 tight, 1 blind" in stdout  # ee2_pos_B: 5e-7 over 4.1e-8
-    assert stdout.count("tolerance = 3 × budget (docs/data/budget.json)") == 3
+    assert stdout.count(f"tolerance = 3 × budget ({out})") == 3  # the document it wrote
 
     doc = json.loads(out.read_text())
     entry = doc["variants"]["short"]["p1_rigid_gains"]
@@ -247,3 +249,77 @@ def test_a_real_budget_of_the_cheapest_case(tmp_path, capsys):
     assert entry["runs"][A]["refined"]["solver"]["rtol"] == settings_of(case, A).rtol / 10
     assert entry["runs"][B]["refined"]["solver"]["substeps"] == 2 * entry["runs"][B]["case"]["solver"]["substeps"]
     assert capsys.readouterr().err.count("] p1_rigid_gains / ") == 4
+
+
+# ---------------------------------------------------------------------------------------
+# --apply: minimal edits of the case files
+# ---------------------------------------------------------------------------------------
+CASE_TEXT = '''# a comment that stays
+name = "x"
+
+[compare.ee1_pos_B]
+tolerance = 1e-7   # the old one
+why = "Measured 2.1e-8 m (\\"short\\"); 1e-7 is 4.7x."
+[short.compare.ee1_pos_B]
+metric = "max_abs"
+tolerance = 1e-7
+why = "short row"  # stays a comment
+[short.compare.ee2_pos_B]
+tolerance = 5e-7
+why = """a multi-line
+why"""
+'''
+
+
+def test_an_edit_changes_the_two_lines_of_the_row_and_nothing_else():
+    new, changed, refused = case_edit.edit_text(CASE_TEXT, "short.compare", {
+        "ee1_pos_B": (1.8e-7, 'budget 5.9e-08 m: "quoted" \\ slash'), "ee2_pos_B": (1.0, "x"),
+        "com_pos_B": (1.0, "y")})
+    assert changed == ["ee1_pos_B"]
+    assert "not a one-line basic string" in refused["ee2_pos_B"] and "no [short.compare.com_pos_B] table" in refused["com_pos_B"]
+    old_lines, new_lines = CASE_TEXT.splitlines(), new.splitlines()
+    differ = [i for i, (a, b) in enumerate(zip(old_lines, new_lines)) if a != b]
+    assert len(old_lines) == len(new_lines) and [old_lines[i] for i in differ] == [
+        "tolerance = 1e-7", 'why = "short row"  # stays a comment']
+    assert [new_lines[i] for i in differ] == [
+        "tolerance = 1.8e-07", 'why = "budget 5.9e-08 m: \\"quoted\\" \\\\ slash"  # stays a comment']
+    row = tomllib.loads(new)["short"]["compare"]["ee1_pos_B"]
+    assert row == {"metric": "max_abs", "tolerance": 1.8e-7, "why": 'budget 5.9e-08 m: "quoted" \\ slash'}
+    assert tomllib.loads(new)["compare"] == tomllib.loads(CASE_TEXT)["compare"]  # the full row untouched
+    new, changed, _ = case_edit.edit_text(CASE_TEXT, "compare", {"ee1_pos_B": (3.0, "z")})
+    assert changed == ["ee1_pos_B"] and "tolerance = 3.0   # the old one" in new.splitlines()
+
+
+def test_a_short_variant_that_takes_the_full_rows_is_not_edited():
+    assert case_edit.compare_table(load_case("motor_step"), True) is None  # no [short.compare]
+    assert case_edit.compare_table(load_case("motor_step"), False) == "compare"
+    assert case_edit.compare_table(load_case("p1_rigid_gains"), True) == "short.compare"
+    edit = case_edit.apply_rows(load_case("motor_step"), True, {"motor_angles": (1e-6, "x")})
+    assert edit.changed == [] and "apply a full budget" in edit.refused["motor_angles"]
+
+
+def test_apply_writes_the_suggestions_into_the_case_file(fake_engines, tmp_path, capsys, monkeypatch):
+    """A copy of p1_rigid_gains (as p1_copy, in its own --cases-dir) with exudyn's step error
+    above ee1_pos_B's tolerance: tight, then --apply sets every row to 3 × its budget (exit
+    0: nothing tight is left); the file differs in those lines only and loads."""
+    cases = tmp_path / "cases"
+    cases.mkdir()
+    source = load_case("p1_rigid_gains").path
+    text = open(source, encoding="utf-8").read().replace('name = "p1_rigid_gains"', 'name = "p1_copy"')
+    (cases / "p1_copy.toml").write_text(text, encoding="utf-8")
+    monkeypatch.setitem(SYNTHETIC, (B, True), (2e-7, 68.35))
+    out = tmp_path / "budget.json"
+    assert main(["--cases-dir", str(cases), "budget", "p1_copy", "--short", "--serial", "--out", str(out)]) == 1
+    assert main(["--cases-dir", str(cases), "budget", "p1_copy", "--short", "--serial", "--apply",
+                 "--out", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    assert "p1_copy.toml: set motor_torques, ee1_pos_B, ee2_pos_B" in stdout
+    new = (cases / "p1_copy.toml").read_text(encoding="utf-8")
+    differ = [(a, b) for a, b in zip(text.splitlines(), new.splitlines()) if a != b]
+    assert len(differ) == 6 and all(a.split("=")[0] == b.split("=")[0] for a, b in differ)
+    rows = {r["observable"]: r for r in json.loads(out.read_text())["variants"]["short"]["p1_copy"]["rows"]}
+    short = load_case(str(cases / "p1_copy.toml")).variant(True)
+    for spec in short.compare:
+        assert spec.tolerance == rows[spec.observable]["suggested_tolerance"]
+        assert spec.why == rows[spec.observable]["suggested_why"] and str(out) in spec.why
+    assert load_case(str(cases / "p1_copy.toml")).compare == load_case("p1_rigid_gains").compare  # full rows kept
