@@ -180,43 +180,43 @@ def _cmd_check(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _budget_cases(names: Sequence[str]) -> list:
+def _budget_cases(names: Sequence[str], short: bool) -> list:
     """The cases named (each validated before anything runs), or every stand-alone case
     whose variant has [compare] rows."""
     if names:
         return [load_case(n) for n in names]
     cases = [load_case(p) for p in list_cases()]
-    return [c for c in cases if not c.phases and c.variant(True).has_initial and c.variant(True).compare]
+    return [c for c in cases if not c.phases and c.variant(short).has_initial and c.variant(short).compare]
 
 
 def _cmd_budget(args: argparse.Namespace) -> int:
     out = output_file(args.out, "--out")  # before anything runs: a directory there is a bad input
     previous = budget.read_document(out)  # and so is a file that is not a budget document
-    cases = _budget_cases(args.case)
+    suggest = budget.Suggest(args.factor, args.out)
+    cases = _budget_cases(args.case, args.short)
     engines = _engine_names(args.engines, "--engines")
     if len(engines) < 2:
         raise InputError("--engines", args.engines, "a budget compares two or more engines")
     if args.apply and len(engines) != 2:
         raise InputError("--apply", ",".join(engines), "writes the rows of one pair of engines: name two")
     results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2)
-    source = args.out
     for cb in results:
         print("\n".join(budget.table_lines(cb)))
     if args.suggest:
-        print(f"Suggested tolerances ({budget.RULES['suggested_tolerance']}):")
+        print(f"Suggested tolerances ({suggest.rule}):")
         for cb in results:
-            lines = budget.suggestion_lines(cb, source)
+            lines = budget.suggestion_lines(cb, suggest)
             if lines:
                 print("\n".join(lines))
     rows = [r for cb in results for r in cb.rows]
     if rows:
-        budget.write_document(out, budget.document(results, args.short, previous, source))
+        budget.write_document(out, budget.document(results, args.short, previous, suggest))
     applied = set()
     if args.apply:
         for cb in results:
             if not cb.rows:
                 continue
-            edit = case_edit.apply_rows(cb.case, args.short, budget.suggestions(cb, source))
+            edit = case_edit.apply_rows(cb.case, args.short, budget.suggestions(cb, suggest))
             applied |= {(cb.name, obs) for obs in edit.changed}
             left = [r.observable for r in cb.rows if r.observable not in {*edit.changed, *edit.refused}]
             print(f"{edit.path}: " + "; ".join(
@@ -411,8 +411,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"the JSON document; its other cases are kept (default: {budget.DEFAULT_OUT})")
     p.add_argument("--engines", metavar="A,B", help="the engines, the model under test first "
                                                      "(default: the default engines, `rsmcheck engines`)")
-    p.add_argument("--suggest", action="store_true",
-                   help=f"print each row's suggested tolerance ({budget.SUGGEST_FACTOR:g} x budget) and why")
+    p.add_argument("--suggest", action="store_true", help="print each row's suggested tolerance and why")
+    p.add_argument("--factor", type=float, default=budget.SUGGEST_FACTOR, metavar="K",
+                   help=f"suggested tolerance = K x budget, rounded up to {budget.SUGGEST_DIGITS} significant "
+                        f"figures; 1 <= K <= {budget.BLIND_MARGIN:g} (default {budget.SUGGEST_FACTOR:g})")
     p.add_argument("--apply", action="store_true",
                    help="write each row's suggested tolerance and why into its case file (the two lines only)")
     p.add_argument("--serial", action="store_true",

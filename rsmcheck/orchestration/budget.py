@@ -24,8 +24,9 @@ order p has X's error ≈ 2^p/(2^p − 1) · d (2 for first order — generalize
 input by O(h), docs/exudyn.md §4 —, 4/3 for second), an adaptive one at rtol/10 ≈ 10/9 · d
 where its error follows rtol, less where stability, not accuracy, holds its steps; and a
 run's round-off seeds what a loop amplifies.  Hence the suggested tolerance,
-`SUGGEST_FACTOR` (3) × budget rounded up to two significant figures (`suggested_tolerance`):
-it covers the factor 2 and leaves the margin 3 the verdict calls "ok".
+`SUGGEST_FACTOR` (3; `rsmcheck budget --factor K`, 1 ≤ K ≤ 10) × budget rounded up to two
+significant figures (`Suggest`, `Budget.suggested_tolerance`): it covers the factor 2 and
+leaves the margin 3 the verdict calls "ok".
 
 The runs are jobs of `runs.run_jobs` (Dask, as every multi-run command): per case and
 engine, one at the case's settings and one refined.  Nothing is stored but the document
@@ -59,7 +60,7 @@ SUGGEST_DIGITS = 2
 DEFAULT_OUT = "docs/data/budget.json"
 FORMAT = "rsmcheck-budget"
 FORMAT_VERSION = 1
-#: the rules, as the document states them
+#: the rules, as the document states them (and the suggestion's, `Suggest.rule`)
 RULES = {
     "model_difference": "d(first engine, other engine) at the case's settings, by the row's metric",
     "integration_error": "d(engine at the case's settings, engine refined by its plug-in's refined_options)",
@@ -68,10 +69,28 @@ RULES = {
     "ok": f"budget <= tolerance and margin <= {BLIND_MARGIN:g}",
     "tight": "tolerance < budget",
     "blind": f"margin > {BLIND_MARGIN:g}",
-    "suggested_tolerance": f"{SUGGEST_FACTOR:g} x budget, rounded up to {SUGGEST_DIGITS} significant figures",
 }
 
 Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Suggest:
+    """The rule of the suggested tolerances: `factor` × budget, rounded up to SUGGEST_DIGITS
+    significant figures, from 1 (the budget itself) to BLIND_MARGIN (still "ok"); `source`,
+    the document the suggested whys cite."""
+
+    factor: float = SUGGEST_FACTOR
+    source: str = DEFAULT_OUT
+
+    def __post_init__(self):
+        if not 1.0 <= self.factor <= BLIND_MARGIN:
+            raise InputError("--factor", f"{self.factor:g}", f"must lie in [1, {BLIND_MARGIN:g}]: below 1 the "
+                             f"suggested tolerance is tight, above {BLIND_MARGIN:g} blind")
+
+    @property
+    def rule(self) -> str:
+        return f"{self.factor:g} x budget, rounded up to {SUGGEST_DIGITS} significant figures"
 
 
 def round_up(x: float, digits: int = SUGGEST_DIGITS) -> float:
@@ -148,7 +167,8 @@ class Budget:
         return (f"budget {_g(self.budget)}{self.unit}{bound}: {', '.join(parts)}; "
                 f"tolerance = {factor:g} × budget ({source})")
 
-    def as_dict(self, refinements: Mapping[str, str] | None = None, source: str = DEFAULT_OUT) -> dict[str, Any]:
+    def as_dict(self, refinements: Mapping[str, str] | None = None, suggest: Suggest = Suggest()) -> dict[str, Any]:
+        tol = self.suggested_tolerance(suggest.factor)
         return {"case": self.case, "observable": self.observable, "metric": self.metric,
                 "engines": list(self.engines), "tolerance": self.tolerance,
                 "model_difference": json_number(self.model_difference),
@@ -156,9 +176,9 @@ class Budget:
                                       for e, v in self.integration_error.items()},
                 "budget": json_number(self.budget), "complete": self.complete,
                 "margin": json_number(self.margin), "verdict": self.verdict,
-                "suggested_tolerance": self.suggested_tolerance(),
-                "suggested_why": self.suggested_why(refinements or {}, source=source) if self.suggested_tolerance()
-                else None,
+                "suggested_tolerance": tol,
+                "suggested_why": None if tol is None else self.suggested_why(refinements or {}, suggest.factor,
+                                                                             suggest.source),
                 "why": self.why}
 
 
@@ -299,9 +319,9 @@ def read_document(path: Path) -> dict[str, Any]:
     return doc
 
 
-def case_entry(cb: CaseBudget, source: str = DEFAULT_OUT) -> dict[str, Any]:
-    """One case's part of the document: rows, runs, where and from what code (`source`:
-    the document the rows' suggested whys cite)."""
+def case_entry(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, Any]:
+    """One case's part of the document: rows (with their suggestions by `suggest`), runs,
+    where and from what code."""
     commit, dirty = git_commit()
     refinements = cb.refinements()
     return {"case": cb.name, "variant": variant_key(cb.short), "duration_s": cb.variant.duration,
@@ -311,18 +331,19 @@ def case_entry(cb: CaseBudget, source: str = DEFAULT_OUT) -> dict[str, Any]:
             "scheduler": executor.scheduler_address(),
             "refinements": {e: r or None for e, r in refinements.items()},
             "not_measured": list(cb.not_measured), "failures": dict(cb.failures),
-            "runs": cb.runs, "rows": [r.as_dict(refinements, source) for r in cb.rows]}
+            "suggested_tolerance": suggest.rule,
+            "runs": cb.runs, "rows": [r.as_dict(refinements, suggest) for r in cb.rows]}
 
 
 def document(results: Sequence[CaseBudget], short: bool, previous: Mapping[str, Any] | None = None,
-             source: str = DEFAULT_OUT) -> dict[str, Any]:
+             suggest: Suggest = Suggest()) -> dict[str, Any]:
     """The budget document: `previous` (`read_document`) with the cases of `results`
     replaced in their variant ("short" or "full"); the other cases kept as they were."""
     variants = {k: dict(v) for k, v in dict((previous or {}).get("variants", {})).items()}
     mine = variants.setdefault(variant_key(short), {})
     for cb in results:
         if not cb.skipped:
-            mine[cb.name] = case_entry(cb, source)
+            mine[cb.name] = case_entry(cb, suggest)
     variants[variant_key(short)] = dict(sorted(mine.items()))
     return {"format": FORMAT, "format_version": FORMAT_VERSION, "rules": RULES,
             "variants": dict(sorted(variants.items()))}
@@ -368,29 +389,29 @@ def table_lines(cb: CaseBudget) -> list[str]:
     return lines
 
 
-def suggestion_lines(cb: CaseBudget, source: str = DEFAULT_OUT) -> list[str]:
+def suggestion_lines(cb: CaseBudget, suggest: Suggest = Suggest()) -> list[str]:
     """Each row's suggested tolerance and why (`Budget.suggested_tolerance`, `suggested_why`)."""
     refinements = cb.refinements()
     lines = []
     for r in cb.rows:
-        tol = r.suggested_tolerance()
+        tol = r.suggested_tolerance(suggest.factor)
         pair = f" ({r.engines[0]} against {r.engines[1]})" if len(cb.engines) > 2 else ""
         if tol is None:
             lines.append(f"  {cb.name} {r.observable}{pair}: no suggestion (budget {_e(r.budget)})")
             continue
         lines.append(f"  {cb.name} {r.observable}{pair}: tolerance {r.tolerance:.2g} -> {tol:.2g}")
-        lines.append(f"      why = \"{r.suggested_why(refinements, source=source)}\"")
+        lines.append(f"      why = \"{r.suggested_why(refinements, suggest.factor, suggest.source)}\"")
     return lines
 
 
-def suggestions(cb: CaseBudget, source: str = DEFAULT_OUT) -> dict[str, tuple[float, str]]:
+def suggestions(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, tuple[float, str]]:
     """observable → (suggested tolerance, why) of the rows `--apply` may write: a case whose
     runs all ran, one pair of engines, every part of the budget measured and not zero."""
     if cb.failures or len(cb.engines) != 2:
         return {}
     refinements = cb.refinements()
-    return {r.observable: (tol, r.suggested_why(refinements, source=source)) for r in cb.rows
-            if r.complete and (tol := r.suggested_tolerance()) is not None}
+    return {r.observable: (tol, r.suggested_why(refinements, suggest.factor, suggest.source)) for r in cb.rows
+            if r.complete and (tol := r.suggested_tolerance(suggest.factor)) is not None}
 
 
 def summary(results: Sequence[CaseBudget]) -> str:

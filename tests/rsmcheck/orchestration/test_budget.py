@@ -208,11 +208,26 @@ def test_an_engine_without_refined_options_is_reported_not_measured(fake_engines
     (["budget", "p1_rigid_gains", "--engines", "reference"], "--engines"),
     (["budget", "p1_rigid_gains", "--engines", "reference,warp"], "warp"),
     (["budget", "p1_rigid_gains", "--out", "."], "--out"),
+    (["budget", "p1_rigid_gains", "--factor", "0.5"], "--factor"),  # tight by construction
+    (["budget", "p1_rigid_gains", "--factor", "12"], "--factor"),  # blind by construction
+    (["budget", "p1_rigid_gains", "--engines", "reference,pinocchio"], "pinocchio"),  # checks, does not simulate
 ])
 def test_budget_bad_input_exits_2_in_one_line(argv, field, capsys):
     assert main(argv) == 2
     out, err = capsys.readouterr()
     assert len(err.splitlines()) == 1 and field in err and "Traceback" not in err and not out
+
+
+def test_the_factor_of_the_suggestion_is_an_option(fake_engines, tmp_path, capsys):
+    out = tmp_path / "b.json"
+    assert main(["budget", "p1_rigid_gains", "--short", "--serial", "--suggest", "--factor", "2", "--out", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    assert "Suggested tolerances (2 x budget, rounded up to 2 significant figures)" in stdout
+    assert "ee1_pos_B: tolerance 1e-07 -> 8.2e-08" in stdout  # 2 × 4.1e-8
+    entry = json.loads(out.read_text())["variants"]["short"]["p1_rigid_gains"]
+    assert entry["suggested_tolerance"] == "2 x budget, rounded up to 2 significant figures"
+    row = next(r for r in entry["rows"] if r["observable"] == "ee1_pos_B")
+    assert row["suggested_tolerance"] == 8.2e-8 and row["suggested_why"].endswith(f"tolerance = 2 × budget ({out})")
 
 
 def test_an_out_file_that_is_not_a_budget_document_is_refused_before_anything_runs(fake_engines, tmp_path, capsys):
