@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from exudyn_model import settings
 from exudyn_model.faults import FAULTS
-from rsmcheck.core.plugins import LineStyle, WorkCounter, deferred
+from rsmcheck.core.plugins import LineStyle, WorkCounter, deferred, settings_of
 
 
 class ExudynPlugin:
@@ -49,6 +49,17 @@ class ExudynPlugin:
 
     def faults(self):
         return FAULTS
+
+    #: what `refined_options` refines, for the tables of `rsmcheck budget`
+    refinement = "half step"
+
+    def refined_options(self, case):
+        """The constructor options of a finer run of `case` (the variant to run): twice the
+        generalized-α steps per control period of the case's (its [exudyn] substeps, else
+        the engine's default), i.e. half the step; mesh and Newton tolerances stay the
+        case's.  `rsmcheck budget` takes the difference to that run as the engine's
+        integration error."""
+        return {"substeps": 2 * (settings_of(case, self.name).substeps or self.option_default("substeps"))}
 
     # the engine's own linearisation and timing, imported when called
     linear_plant = deferred("exudyn_model.modes", "linear_plant")

@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from reference_model import settings
 from reference_model.faults import FAULTS
-from rsmcheck.core.plugins import LineStyle, WorkCounter, deferred
+from rsmcheck.core.plugins import LineStyle, WorkCounter, deferred, settings_of
 
 
 class ReferencePlugin:
@@ -48,6 +48,17 @@ class ReferencePlugin:
 
     def faults(self):
         return FAULTS
+
+    #: what `refined_options` refines, for the tables of `rsmcheck budget`
+    refinement = "rtol/10"
+
+    def refined_options(self, case):
+        """The constructor options of a finer run of `case` (the variant to run): the
+        relative tolerance of every integrator a tenth of the case's (the absolute ones
+        follow it, reference_model/stepper.py); the integrators and h_max stay the case's.
+        `rsmcheck budget` takes the difference to that run as the engine's integration
+        error."""
+        return {"rtol": settings_of(case, self.name).rtol / 10}
 
     # the engine's own linearisation and timing, imported when called
     linear_plant = deferred("reference_model.modes", "linear_plant")

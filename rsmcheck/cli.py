@@ -17,10 +17,10 @@ from typing import Callable, Sequence
 
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
-from rsmcheck.orchestration import bench, compare, executor, gate
+from rsmcheck.orchestration import bench, budget, case_edit, compare, executor, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
-from rsmcheck.core.plugins import available, engine_names, plugin, plugins, require
+from rsmcheck.core.plugins import CAPABILITIES, available, engine_names, plugin, plugins, require
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
 
@@ -54,8 +54,7 @@ def _cmd_engines(args: argparse.Namespace) -> int:
     """`rsmcheck engines`: every registered plug-in, what it offers and whether it can run."""
     for name, p in plugins().items():
         role = "simulates" if p.simulates else "checks"
-        caps = [c for c in ("linear_plant", "coupled_frequencies", "link_frequencies", "rhs_timing", "rigid_checks",
-                            "aba_timing") if getattr(p, c, None) is not None]
+        caps = [c for c in CAPABILITIES if getattr(p, c, None) is not None]
         state = "available" if available(name) else (
             f"NOT INSTALLED: pip install 'rsmcheck[{p.extra}]'" if p.extra else "NOT INSTALLED")
         tables = ", ".join(f"[{t}]" for t in p.tables) or "-"
@@ -181,6 +180,58 @@ def _cmd_check(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _budget_cases(names: Sequence[str], short: bool) -> list:
+    """The cases named (each validated before anything runs), or every stand-alone case
+    whose variant has [compare] rows."""
+    if names:
+        return [load_case(n) for n in names]
+    cases = [load_case(p) for p in list_cases()]
+    return [c for c in cases if not c.phases and c.variant(short).has_initial and c.variant(short).compare]
+
+
+def _cmd_budget(args: argparse.Namespace) -> int:
+    out = output_file(args.out, "--out")  # before anything runs: a directory there is a bad input
+    previous = budget.read_document(out)  # and so is a file that is not a budget document
+    suggest = budget.Suggest(args.factor, args.out)
+    cases = _budget_cases(args.case, args.short)
+    engines = _engine_names(args.engines, "--engines")
+    if len(engines) < 2:
+        raise InputError("--engines", args.engines, "a budget compares two or more engines")
+    if args.apply and len(engines) != 2:
+        raise InputError("--apply", ",".join(engines), "writes the rows of one pair of engines: name two")
+    results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2)
+    for cb in results:
+        print("\n".join(budget.table_lines(cb)))
+    if args.suggest:
+        print(f"Suggested tolerances ({suggest.rule}):")
+        for cb in results:
+            lines = budget.suggestion_lines(cb, suggest)
+            if lines:
+                print("\n".join(lines))
+    rows = [r for cb in results for r in cb.rows]
+    if rows:
+        budget.write_document(out, budget.document(results, args.short, previous, suggest))
+    applied = set()
+    if args.apply:
+        for cb in results:
+            if not cb.rows:
+                continue
+            edit = case_edit.apply_rows(cb.case, args.short, budget.suggestions(cb, suggest))
+            applied |= {(cb.name, obs) for obs in edit.changed}
+            left = [r.observable for r in cb.rows if r.observable not in {*edit.changed, *edit.refused}]
+            print(f"{edit.path}: " + "; ".join(
+                [f"set {', '.join(edit.changed)}" if edit.changed else "nothing set"]
+                + [f"{obs} not set: {why}" for obs, why in edit.refused.items()]
+                + ([f"{', '.join(left)} not set: a run failed or a part of the budget is not measured or zero"]
+                   if left else [])))
+    print(budget.summary(results) + (f"; wrote {out}" if rows else ""))
+    if not rows:
+        sys.stderr.write("rsmcheck: nothing was budgeted (no case with [compare] rows could be measured)\n")
+        return 1
+    failed = any(cb.failures for cb in results)
+    return 1 if failed or any(r.verdict == "tight" and (r.case, r.observable) not in applied for r in rows) else 0
+
+
 def _cmd_modes(args: argparse.Namespace) -> int:
     # lazy: at the top its scipy would add ≈ 0.5 s to every command (`rsmcheck --help` takes 0.4 s)
     from rsmcheck.orchestration.modes import arm_rows, link_rows
@@ -290,6 +341,7 @@ def _cmd_bless(args: argparse.Namespace) -> int:
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "bench": _cmd_bench,
     "bless": _cmd_bless,
+    "budget": _cmd_budget,
     "gate": _cmd_gate,
     "cases": _cmd_cases,
     "check": _cmd_check,
@@ -300,9 +352,9 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
 }
 
 
-SCHEDULER_HELP = (f"run the jobs of check, gate, bless, report and bench on the Dask cluster whose scheduler "
-                  f"is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this machine's "
-                  f"processes; docs/cluster.md)")
+SCHEDULER_HELP = (f"run the jobs of check, budget, gate, bless, report and bench on the Dask cluster whose "
+                  f"scheduler is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this "
+                  f"machine's processes; docs/cluster.md)")
 CASES_DIR_HELP = (f"also read the case files of folder DIR (repeatable; before or after the command; "
                   f"${CASES_ENV} too, {os.pathsep}-separated); a name in two folders is an error")
 
@@ -351,6 +403,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rerun", action="store_true", help="with --out: run again even what is stored and current")
     p.add_argument("--serial", action="store_true",
                    help="run the engines one after the other in this process (default: 2 processes)")
+    p = sub.add_parser("budget", help="each [compare] row's error budget: the engines' difference plus each "
+                                      "one's integration error (docs/cases.md §1)")
+    p.add_argument("case", nargs="*", help="case names (default: every stand-alone case with a [compare] table)")
+    p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
+    p.add_argument("--out", default=budget.DEFAULT_OUT,
+                   help=f"the JSON document; its other cases are kept (default: {budget.DEFAULT_OUT})")
+    p.add_argument("--engines", metavar="A,B", help="the engines, the model under test first "
+                                                     "(default: the default engines, `rsmcheck engines`)")
+    p.add_argument("--suggest", action="store_true", help="print each row's suggested tolerance and why")
+    p.add_argument("--factor", type=float, default=budget.SUGGEST_FACTOR, metavar="K",
+                   help=f"suggested tolerance = K x budget, rounded up to {budget.SUGGEST_DIGITS} significant "
+                        f"figures; 1 <= K <= {budget.BLIND_MARGIN:g} (default {budget.SUGGEST_FACTOR:g})")
+    p.add_argument("--apply", action="store_true",
+                   help="write each row's suggested tolerance and why into its case file (the two lines only)")
+    p.add_argument("--serial", action="store_true",
+                   help="run one after the other in this process (default: 2 processes)")
     p = sub.add_parser("modes", help="link and arm eigenfrequencies: analytic, reference, Exudyn")
     p.add_argument("--json", action="store_true", help="one JSON object {\"links\": [...], \"arms\": [...]}")
     p.add_argument("--engines", metavar="A,B", help="the engines (default: the default engines)")
@@ -400,7 +468,7 @@ DELEGATED = {"bench"}
 LISTINGS = {"cases", "modes"}
 
 #: commands whose runs go through rsmcheck.orchestration.runs.run_jobs (--scheduler)
-JOB_COMMANDS = {"check", "gate", "bless", "report"}
+JOB_COMMANDS = {"check", "budget", "gate", "bless", "report"}
 
 
 #: the global options that take a value, taken out of the arguments before the command is

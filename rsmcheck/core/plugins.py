@@ -9,8 +9,9 @@ An engine is a Python distribution that registers one object under the entry-poi
 The object satisfies `EnginePlugin`.  Everything engine-specific lives there: its name and
 label, the tables of a case file it owns and their schema, how to build it, the counters
 that measure its work, the perturbation the gate uses to measure its reproducibility, its
-linearisation, frequencies and right-hand-side timing (where it has them), its fault
-catalogue for `make faults`, and its colour and line style in the report.  The shared code
+linearisation, frequencies, right-hand-side timing and finer run (where it has them:
+`CAPABILITIES`), its fault catalogue for `make faults`, and its colour and line style in
+the report.  The shared code
 (the driver, the orchestration, the report, the command line) reaches engines only through
 `plugins()` and `plugin(name)` and names none of them; the engines a cross-check compares
 when none are named are one setting (`default_engines`).
@@ -47,6 +48,17 @@ ENGINES_ENV = "RSMCHECK_ENGINES"
 #: what every plug-in must have (`EnginePlugin`); the registry refuses one that lacks any
 REQUIRED = ("name", "label", "style", "simulates", "requires", "extra", "tables", "solver_keys", "work_counters",
             "engine_options", "parse_settings", "make", "step_perturbed", "faults")
+#: the optional capabilities a plug-in may offer (absent or None: it has none), listed by
+#: `rsmcheck engines`:
+#:   linear_plant, coupled_frequencies   its linearisation (closed-loop analysis, `rsmcheck modes`)
+#:   link_frequencies                    one link's bending frequencies (`rsmcheck modes`)
+#:   rhs_timing                          its right-hand side's cost (`rsmcheck bench`)
+#:   refined_options(case) -> dict       the constructor options of a finer run of `case`, with
+#:                                       `refinement`, what they refine ("rtol/10"): the run
+#:                                       `rsmcheck budget` measures its integration error against
+#:   rigid_checks, aba_timing            a plug-in that checks (Pinocchio)
+CAPABILITIES = ("linear_plant", "coupled_frequencies", "link_frequencies", "rhs_timing", "refined_options",
+                "rigid_checks", "aba_timing")
 
 
 @dataclass(frozen=True)
@@ -304,6 +316,23 @@ def parse_engine_settings(raw: Mapping[str, Any], solver: Mapping[str, Any], whe
 def step_perturbed_settings(settings: Mapping[str, EngineSettings], factor: float) -> dict[str, EngineSettings]:
     """Each engine's settings with its decision tolerance scaled by `factor` (the gate)."""
     return {name: plugin(name).step_perturbed(s, factor) for name, s in settings.items()}
+
+
+def refined_options(name: str, case: Case) -> dict[str, Any] | None:
+    """Plug-in `name`'s constructor options of a finer run of `case` (the variant to run),
+    from its optional `refined_options`; None when it declares none.  Options it does not
+    accept (`engine_options`), or none at all, are an InputError naming the plug-in."""
+    p = plugin(name)
+    make_finer = getattr(p, "refined_options", None)
+    if make_finer is None:
+        return None
+    options = dict(make_finer(case))
+    unknown = sorted(set(options) - set(p.engine_options))
+    if not options or unknown:
+        raise InputError(f"plug-in {name}", "refined_options",
+                         f"options {', '.join(unknown)} are not among its engine_options" if unknown
+                         else "gives no option: a finer run must differ")
+    return options
 
 
 def given_settings(settings: Mapping[str, EngineSettings]) -> dict[str, dict[str, Any]]:

@@ -51,7 +51,8 @@ SOURCE_PACKAGES = ("rsmcheck",)
 NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/orchestration/collect.py", "rsmcheck/orchestration/bench.py",
                "rsmcheck/orchestration/studies.py", "rsmcheck/orchestration/faults.py",
                "rsmcheck/orchestration/gate.py", "rsmcheck/orchestration/compare.py",
-               "rsmcheck/orchestration/runs.py", "rsmcheck/orchestration/executor.py")
+               "rsmcheck/orchestration/runs.py", "rsmcheck/orchestration/executor.py",
+               "rsmcheck/orchestration/budget.py", "rsmcheck/orchestration/case_edit.py")
 
 Progress = Callable[[str], None]
 

@@ -110,3 +110,34 @@ def test_each_engine_reads_its_own_settings_and_perturbs_its_own_tolerance():
     assert stepped["reference"].rtol == pytest.approx(1.001e-7, rel=1e-15)
     assert stepped["exudyn"].newton_atol_scale == pytest.approx(1.001, rel=1e-15)
     assert stepped["exudyn"].newton_atol == exu.newton_atol  # the scale, not the setting
+
+
+def test_each_engine_declares_its_finer_run_for_the_budget():
+    """`refined_options` (rsmcheck budget): the reference's rtol exactly a tenth of the
+    case's, of the variant run (p4 short: 1e-7); Exudyn's substeps twice the case's
+    (motor_step: 128 → 256) or twice the engine's default where the case gives none
+    (free_drift); a plug-in without it (Pinocchio) is None."""
+    p4, motor, drift = load_case("p4_hohmann").variant(True), load_case("motor_step"), load_case("free_drift")
+    assert reg.refined_options("reference", p4) == {"rtol": reg.settings_of(p4, "reference").rtol / 10}
+    assert reg.refined_options("reference", motor)["rtol"] == 1e-9 / 10
+    assert reg.refined_options("exudyn", motor) == {"substeps": 2 * reg.settings_of(motor, "exudyn").substeps} \
+        == {"substeps": 256}
+    assert reg.settings_of(drift, "exudyn").substeps is None
+    assert reg.refined_options("exudyn", drift) == {"substeps": 2 * reg.plugin("exudyn").option_default("substeps")}
+    assert reg.refined_options("pinocchio", motor) is None
+    assert set(reg.with_capability("refined_options")) >= {"reference", "exudyn"}
+    for name in ("reference", "exudyn"):
+        assert isinstance(reg.plugin(name).refinement, str) and reg.plugin(name).refinement
+
+
+def test_a_finer_run_with_options_the_engine_does_not_take_is_refused(monkeypatch):
+    """A plug-in whose refined_options name an option outside its engine_options (or none):
+    one line naming the plug-in, not a run that fails in a worker."""
+    ref = reg.plugin("reference")
+    case = load_case("motor_step")
+    monkeypatch.setattr(type(ref), "refined_options", lambda self, c: {"tolerance": 1e-10}, raising=False)
+    with pytest.raises(InputError, match="plug-in reference: refined_options: options tolerance are not among"):
+        reg.refined_options("reference", case)
+    monkeypatch.setattr(type(ref), "refined_options", lambda self, c: {}, raising=False)
+    with pytest.raises(InputError, match="gives no option"):
+        reg.refined_options("reference", case)
