@@ -1,42 +1,45 @@
-"""The static correction shapes condensed (residual flexibility), compiled
+"""The static correction shapes slaved to the springs (Guyan condensation), compiled
 (docs/physics.md §2.4).
 
 Each flexible link carries, after its eigenmodes, two static shapes: its bending under
 unit end couples.  As states they add Ritz frequencies of 0.4–0.8 kHz on a fixed frame
-(0.8–1.1 kHz coupled to the free-floating frames), far above the loads (< 100 Hz) and
-above the true beam modes they stand in for; their dynamic part is (f/f_n)² ≤ 1.6 % of
-their quasi-static response.  Condensed, they keep their stiffness and drop their
-inertia (the modal-acceleration method): at every right-hand side their amplitudes are
-the static equilibrium of each arm under the joint springs of eq. (5) and the wrist
-stop, given everything else,
+(0.8–1.1 kHz coupled to the free-floating frames), above the beam modes they stand in for
+and far above the loads.  Slaved, their amplitudes are at every instant the static
+equilibrium of each arm under the joint springs of eq. (5) and the wrist stop, given all
+the other coordinates,
 
     ∂V/∂a_s = 0,   V = ½ Σ_i aᵀ K_ff,i a + ½ K_m Σ_J (ψ_J − θ_m,J)² + ½ k_w δ_w²,
     ψ_J = ψ_J,r + D_J a_s,        ψ_w = ψ_w,r + d_wᵀ a_s,
 
 with ψ_J,r, ψ_w,r the section angles without the static shapes, D_J their end slopes
-(+φ_s'(0) of the child, −φ_s'(L) of the parent) and d_w = −φ_s'(L) of the terminal link,
+(+φ_s'(0) of the child, −φ_s'(L) of the parent), d_w = −φ_s'(L) of the terminal link and
 δ_w = ψ_w ∓ ψ_lim beyond a stop.  Per arm (six static amplitudes) this is linear:
 
     K̃ a_s = −K_m Σ_J D_Jᵀ (ψ_J,r − θ_m,J) − k_w d_w (ψ_w,r ∓ ψ_lim) − K_se a_e,
     K̃ = blockdiag(K_ss,i) + K_m Σ_J D_Jᵀ D_J + k_w d_w d_wᵀ,
 
 the k_w terms only where the wrist of a holding arm is beyond its stop (K_se, the
-stiffness between static shapes and eigenmodes, is zero to round-off).  The rates are
-its time derivative, ȧ_s = K̃⁻¹ ∂(right-hand side)/∂t: the same equation with every
-angle replaced by its rate.  So a_s = T(y) with T linear in the other coordinates y (for a
-given stop state), and the equations of y follow from virtual work with the shapes slaved:
-the generalised force left on the shapes, f_s (their damping — Kelvin–Voigt, the joints'
-C_m, the stop's — since the springs balance by construction), is passed on as Tᵀ f_s.
-With g = K̃⁻¹ f_s that is a torque δu_J = −K_m D_J·g in every joint (on the joint
-coordinate, on the eigen slopes at both ends, −δu_J on the rotor, like u_J of eq. 5), a
-torque δτ_w = −k_w d_w·g on the wrist (like τ_w) and −K_esᵀ g on the eigenmodes.  Energy:
-the potential of y is V at its minimum over a_s, the kinetic energy that of the rest;
-the dissipation is that of the full model at ȧ_s = T ẏ.
+stiffness between static shapes and eigenmodes, is zero to round-off).  With
+z = [Y, θ_m] (the rotors after Y) the right-hand side is B z + k_w d_w (±ψ_lim), so
 
-Without mass the shapes take no part in M_g (their rows are zero and left out of the
-solve, solve.py) and feel no field (their mass integrals are zero in ModelArrays).  A
-grasp's constraint rows never involve them: a holding arm's links are all in the PP basis,
-whose shapes vanish at the distal pin, so the end effector does not move with them.
+    a_s = T z + c,   T = K̃⁻¹ B,   ȧ_s = T ż,
+
+T and c constant for a given terminal basis and stop state (`slaving_tables`, once per
+model).  The equations of z follow from the kinetic and potential energy of the whole
+model with the shapes slaved (their mass kept):
+
+    M_z = Pᵀ blockdiag(M_g, B_m I) P,    f_z = Pᵀ [f; τ_m − u_J],
+
+P the identity with the static rows replaced by T (`reduced_mass`, `project`).  Since the
+springs balance on the shapes by construction, what Tᵀ f_s carries to z is their damping
+(Kelvin–Voigt, the joints' C_m, the stop's), their field and their inertial loads; the
+elastic forces on z are −∂V/∂z of the condensed energy, the damping dissipates what the
+full model would at ȧ_s = T ż.  The slaved shapes also couple each arm's rotors to it
+through their inertia (T has rotor columns).
+
+A grasp's constraint rows never involve the shapes: a holding arm's links are all in the
+PP basis, whose shapes vanish at the distal pin, so the end effector does not move with
+them.
 """
 
 from __future__ import annotations

@@ -4,9 +4,10 @@ control (numba), the default for every case (docs/physics.md §7).
 Seven stages, the 7th evaluated at the 5th-order solution (first same as last: six new
 right-hand sides `ode.rhs` per step); the embedded 4th-order solution gives the error
 estimate per component.  The highest frequencies of the flexible model bound its step by
-stability: near 0.46 ms with the static correction shapes (their 0.8–1.1 kHz Ritz modes,
-the default), near 2.5 ms without them (the 160 Hz link modes); for quiet, stiff phases a
-case may choose TR-BDF2 (`trbdf2.py`).
+stability: near 2.3 ms with the static correction shapes slaved (the default: the 140–230 Hz
+coupled link modes are the highest left), near 0.46 ms with them as Ritz states
+(`static_modes = "explicit"`: their 0.8–1.1 kHz modes); for quiet, stiff phases a case may
+choose TR-BDF2 (`trbdf2.py`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """IMEX integrator of the reference: the additive Runge–Kutta pair ARK5(4)8L[2]SA of
 Kennedy & Carpenter (2003) with error control (numba), the stiff shapes implicit.
 
-Why it exists: the static correction shapes (docs/physics.md §2.4) put the flexible
+Why it exists: the static correction shapes as Ritz states (`static_modes = "explicit"`,
+docs/physics.md §2.4; slaved, the default, they are not states) put the flexible
 model's highest eigenvalues near 0.8–0.9 kHz (damped at 23–27 %), which holds the explicit
 Dormand–Prince pair (`dopri5.py`) by stability near 0.46 ms, two to three steps per 1 ms
 control sample.  Here the right-hand side is split as
