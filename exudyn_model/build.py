@@ -28,8 +28,9 @@ Model (docs/exudyn.md has the reasons and the numbers):
   its inertial couple J_extra θ̈ reaches the beam as the generalised force of the frame
   rotation, as in the reference; θ_J (`joint_frame_angles`) is read from these bodies;
 * grasps: `ObjectJointRevolute2D` end effector ↔ target point, switched by `activeConnector`;
-  wrist bistop: `ObjectConnectorCoordinateSpringDamperExt` with limit stops between the
-  terminal link's distal hub θ and θ_T;
+  wrist bistop: `ObjectConnectorCoordinateSpringDamperExt` between the terminal link's
+  distal hub θ and θ_T, its force the Hunt–Crossley stop of `bistop_law` (a symbolic
+  `springForceUserFunction`, compiled by Exudyn);
 * inputs held over the control period (zero-order hold, set once per period): τ_B
   (`LoadTorqueVector`), τ_m, thrust (`LoadForceVector`, body fixed), and, with an orbit or
   thrust, the field of docs/physics.md §5 as one generalised force vector on the mass
@@ -59,10 +60,12 @@ with contextlib.redirect_stdout(io.StringIO()):
 from exudyn.itemInterface import (  # noqa: E402
     CoordinateConstraint, LoadCoordinate, LoadForceVector, LoadTorqueVector,
     MarkerBodyPosition, MarkerBodyRigid, MarkerNodeCoordinate, MarkerNodePosition,
-    MarkerNodeRigid, MarkerObjectODE2Coordinates, NodeGenericData, NodeGenericODE2,
+    MarkerNodeRigid, MarkerObjectODE2Coordinates, NodeGenericODE2,
     NodePointGround, NodeRigidBody2D, ObjectConnectorCoordinateSpringDamperExt,
     ObjectConnectorCoordinateVector, ObjectGenericODE2, ObjectGround, ObjectJointPrismatic2D,
     ObjectJointRevolute2D, ObjectRigidBody2D)
+
+from exudyn.advancedUtilities import CreateSymbolicUserFunction  # noqa: E402
 
 from exudyn_model import links  # noqa: E402
 from exudyn_model.indices import IndexTables, index_tables  # noqa: E402
@@ -74,6 +77,30 @@ PP, PF = "PP", "PF"
 def perp(a) -> np.ndarray:
     """a turned by +90° in the plane: ω × a = ω perp(a) for a rotation rate ω about z."""
     return np.array([-a[1], a[0]])
+
+
+def bistop_law(limit: float):
+    """The wrist bistop as the `springForceUserFunction` of a CoordinateSpringDamperExt
+    (docs/physics.md §4.3), to be made symbolic by `CreateSymbolicUserFunction`.
+
+    Exudyn passes q = q_T − q_hub (coordinates without their references), v = q̇, and the
+    connector's stiffness k, damping d (here λ) and offset (−ψ at q = 0); its force f acts
+    as −f on the target.  With ψ = q − offset, the penetration δ = max(|ψ| − ψ_lim, 0):
+
+        f = sgn(ψ) max(0, k δ + λ δ sgn(ψ) v),
+
+    zero at and inside the limit, never pulling the target into the stop.
+    """
+    sym = exu.symbolic
+
+    def law(mbs, t, itemNumber, q, v, k, d, offset, velocityOffset, fDynamicFriction,
+            fStaticFrictionOffset, exponentialDecayStatic, fViscousFriction, frictionProportionalZone):
+        psi = q - offset
+        s = sym.sign(psi)
+        delta = sym.max(sym.abs(psi) - limit, 0.0)
+        return s * sym.max(k * delta + d * delta * s * v, 0.0)
+
+    return law
 
 
 @dataclass
@@ -135,6 +162,8 @@ class ExudynModel:
     pos_mid: np.ndarray  # r(L/2)
     pos_tip: np.ndarray  # r(L)
     index: IndexTables | None = None  # ODE2 index tables, set by `build_model` after Assemble
+    # the bistops' symbolic spring-force functions (`bistop_law`): they must outlive the mbs
+    bistop_laws: list = dc_field(default_factory=list)
 
 
 def initial_basis(grasp) -> list[str]:
@@ -221,7 +250,7 @@ def build_model(p, init, rho_G: np.ndarray, basis: list[str], rigid: bool, n_ele
         rotor_nodes.append(nr)
 
     # ---- grasps and wrist bistops ----
-    grasp_joints, grasp_markers, bistops = [], [], []
+    grasp_joints, grasp_markers, bistops, bistop_laws = [], [], [], []
     w = p.wrist
     for k in range(2):
         link = items[3 * k + 2]
@@ -229,14 +258,16 @@ def build_model(p, init, rho_G: np.ndarray, basis: list[str], rigid: bool, n_ele
         grasp_markers.append(mt)
         grasp_joints.append(mbs.AddObject(ObjectJointRevolute2D(
             markerNumbers=[mt, link.dist_marker], activeConnector=bool(init.grasp[k]))))
+        # the markers' coordinates exclude the reference ones: ψ = q_T − q_hub + psi_ref
         psi_ref = float(init.target_pose[2]) - frame_ref[3 * k + 2]
-        data = mbs.AddNode(NodeGenericData(initialCoordinates=[0.0, 0.0, 0.0], numberOfDataCoordinates=3))
         m0 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=link.dist_hub, coordinate=2))
         m1 = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=target_node, coordinate=2))
+        law = CreateSymbolicUserFunction(mbs, bistop_law(w.limit), "springForceUserFunction",
+                                         itemTypeName="ObjectConnectorCoordinateSpringDamperExt")
+        bistop_laws.append(law)
         bistops.append(mbs.AddObject(ObjectConnectorCoordinateSpringDamperExt(
-            markerNumbers=[m0, m1], nodeNumber=data, stiffness=0.0, damping=0.0,
-            useLimitStops=True, limitStopsUpper=w.limit - psi_ref, limitStopsLower=-w.limit - psi_ref,
-            limitStopsStiffness=w.stiffness, limitStopsDamping=w.damping,
+            markerNumbers=[m0, m1], stiffness=w.stiffness, damping=w.contact_damping,
+            offset=-psi_ref, useLimitStops=False, springForceUserFunction=law,
             activeConnector=bool(init.grasp[k]))))
 
     # ---- base actuators ----
@@ -258,6 +289,7 @@ def build_model(p, init, rho_G: np.ndarray, basis: list[str], rigid: bool, n_ele
         ground_coords=ground_coords, ground_coord=ground_coord, base_node=base_node, base=base,
         target_node=target_node, target=target, links=items, frame_ref=frame_ref, rotor_nodes=rotor_nodes,
         motor_loads=motor_loads, grasp_markers=grasp_markers, grasp_joints=grasp_joints, bistops=bistops,
+        bistop_laws=bistop_laws,
         base_torque_load=base_torque_load, thrust_load=thrust_load, carrier=carrier, field_nodes=field_nodes,
         first=mesh.first_matrix(), moment=mesh.moment_matrix(), mass_ancf=mesh.mass_matrix(),
         pos_mid=mesh.pos_matrix(0.5 * L), pos_tip=mesh.pos_matrix(L))

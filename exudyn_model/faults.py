@@ -14,6 +14,7 @@ FAULTS: tuple[Fault, ...] = (
           "inertia=p.link.inertia_extra))", "inertia=0.0))",
           "Exudyn: the links' extra rotary inertia (hub body) left out"),
     Fault("exu_bistop_stiffness", "exudyn_model/build.py",
-          "limitStopsStiffness=w.stiffness,", "limitStopsStiffness=0.5 * w.stiffness,",
+          "stiffness=w.stiffness, damping=w.contact_damping,",
+          "stiffness=0.5 * w.stiffness, damping=w.contact_damping,",
           "Exudyn: wrist bistop stiffness halved"),
 )

@@ -21,7 +21,7 @@ from reference_model import condense, kinematics, measures, ode, solve, system
 from reference_model.beam_modes import PF, PP, ModalBasis, modal_basis
 from reference_model.model_arrays import (
     ModelArrays, N_INPUTS, N_LINKS, N_SCALARS, S_ALPHA, S_BETA, S_BM, S_CM, S_ETA, S_I0, S_ISPG0, S_JB,
-    S_JEX, S_JT, S_KM, S_L, S_MB0, S_ML, S_MT, S_MTOT0, S_MU, S_ORBIT, S_RHO, S_WC, S_WK, S_WLIM,
+    S_JEX, S_JT, S_KM, S_L, S_MB0, S_ML, S_MT, S_MTOT0, S_MU, S_ORBIT, S_RHO, S_WC, S_WK, S_WLAM, S_WLIM,
     Switches, U_TAU_B)
 from rsmcheck.core.geometry import rot
 from rsmcheck.driver.initial import InitialConfiguration
@@ -191,6 +191,7 @@ class ReferenceModel:
         sc[S_WLIM] = p.wrist.limit
         sc[S_WK] = p.wrist.stiffness
         sc[S_WC] = p.wrist.damping
+        sc[S_WLAM] = p.wrist.contact_damping
         sc[S_MU] = p.orbit.mu
         sc[S_ISPG0] = p.actuators.isp * p.actuators.g0
         sc[S_ORBIT] = 1.0 if self.orbit else 0.0
@@ -390,6 +391,7 @@ class ReferenceModel:
         sc[S_BETA] = 0.0
         sc[S_WK] = 0.0
         sc[S_WC] = 0.0
+        sc[S_WLAM] = 0.0
         arrays = self.arrays._replace(sc=sc)
         if self.condensed:  # the stop's spring is off: slave the shapes without it
             T, c, dw, cols, ncol = condense.slaving_tables(arrays)

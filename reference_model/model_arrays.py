@@ -60,7 +60,8 @@ S_MU = 18  # Earth μ
 S_ISPG0 = 19  # Isp·g0 [m/s]
 S_ORBIT = 20  # 1.0: tidal gravity on, 0.0: off
 S_MTOT0 = 21  # total mass at t = 0
-N_SCALARS = 22
+S_WLAM = 22  # wrist bistop Hunt–Crossley damping λ [N·m·s/rad²]
+N_SCALARS = 23
 
 # --- inputs u (held constant over a control period) ----------------------------------
 U_TAU_M = 0  # 6 motor torques (after saturation)

@@ -15,8 +15,8 @@ from reference_model.field import tidal
 from reference_model.kinematics import joint_section_angles, kinematics, wrist_angles
 from reference_model.link import link_field_force, link_newton
 from reference_model.model_arrays import (
-    N_LINKS, S_ALPHA, S_BETA, S_BM, S_CM, S_JB, S_JT, S_KM, S_MB0, S_MT, S_MTOT0, S_MU, S_ORBIT, S_WC, S_WK,
-    S_WLIM, U_TAU_B, U_TAU_M, U_THRUST)
+    N_LINKS, S_ALPHA, S_BETA, S_BM, S_CM, S_JB, S_JT, S_KM, S_MB0, S_MT, S_MTOT0, S_MU, S_ORBIT, S_WK,
+    S_WLAM, S_WLIM, U_TAU_B, U_TAU_M, U_THRUST)
 
 
 # =====================================================================================
@@ -165,13 +165,26 @@ def _target_rows(Mg, f, XT, rO, aunif, nq, sc):
 
 
 @njit(cache=True)
-def _bistop(psi, psid, lim, k, c):
-    """Wrist bistop: one-sided spring-damper beyond ±lim on the relative rotation ψ."""
+def _bistop(psi, psid, lim, k, lam):
+    """Wrist bistop τ_w on the target (docs/physics.md §4.3): a Hunt–Crossley contact beyond
+    ±ψ_lim on the relative rotation ψ, clamped so that it only pushes:
+
+        δ = |ψ| − ψ_lim  (penetration),   δ̇ = sgn(ψ) ψ̇,
+        τ_w = −sgn(ψ) max(0, k δ + λ δ δ̇)   for δ > 0,   τ_w = 0 otherwise.
+
+    Zero at δ = 0 (continuous at contact), never pulling (τ_w ψ ≤ 0 beyond the limit).
+    """
     if psi > lim:
-        return -k * (psi - lim) - c * psid
-    if psi < -lim:
-        return -k * (psi + lim) - c * psid
-    return 0.0
+        s = 1.0
+    elif psi < -lim:
+        s = -1.0
+    else:
+        return 0.0
+    d = s * psi - lim
+    push = d * (k + lam * s * psid)
+    if push <= 0.0:
+        return 0.0
+    return -s * push
 
 
 @njit(cache=True, inline="always")
@@ -203,7 +216,7 @@ def _grasp_rows(f, q, qd, XT, XTd, kin, m, sw):
             continue
         i3 = 3 * k + 2
         b3 = sw.basis[i3]
-        tw = _bistop(psi_w[k], psid_w[k], sc[S_WLIM], sc[S_WK], sc[S_WC])
+        tw = _bistop(psi_w[k], psid_w[k], sc[S_WLIM], sc[S_WK], sc[S_WLAM])
         tauw[k] = tw
         f[nq + 2] += tw
         for col in range(nq):

@@ -194,7 +194,20 @@ class WristParams:
     )
     damping: float = _p(
         500.0,
-        "Bistop damping [N·m·s/rad]: ζ = c / (2 sqrt(k J_T)) = 0.14, a lossy stop.",
+        "Damping c of the paper's linear stop, τ = −k δ − c ψ̇ [N·m·s/rad]: ζ = c / (2 sqrt(k J_T)) "
+        "= 0.14, a lossy stop.  No engine applies it any more: the damper pulled the target back "
+        "during the rebound and switched on with a step c ψ̇ at contact; it sets contact_damping.",
+        NON_NEGATIVE,
+    )
+    contact_damping: float = _p(
+        1.2e5,
+        "Hunt–Crossley damping λ of the bistop [N·m·s/rad²], τ = −sgn ψ max(0, k δ + λ δ δ̇), "
+        "δ = |ψ| − ψ_lim, δ̇ = sgn ψ ψ̇ (docs/physics.md §4.3): the contact's damping λ δ grows "
+        "with the penetration from 0 at first touch (no step) and the clamp keeps it from pulling.  "
+        "λ = c / δ_max = 500 / 4.19e-3 = 1.19e5: the damping equals the linear stop's c at the "
+        "peak penetration δ_max = 4.19e-3 rad that stop reaches in wrist_bistop (both engines), "
+        "so the stop loses energy at the same scale (wrist_bistop's contact: 0.036 J, the linear "
+        "stop's damper 0.055 J).",
         NON_NEGATIVE,
     )
 
