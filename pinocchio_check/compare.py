@@ -162,7 +162,10 @@ def make_states(pin_model: PinocchioRSM, chain: str, n_states: int, first_seed: 
 def default_reference(params: Params, n_modes: int):
     from reference_model.build import ReferenceModel
 
-    return ReferenceModel(params, n_modes=n_modes)
+    # the static shapes as Ritz states: slaved (the default) they would load the rigid rows
+    # with their own inertial forces through the springs (docs/physics.md §2.4), as the
+    # elastic coordinates couple into the constrained accelerations
+    return ReferenceModel(params, n_modes=n_modes, static_modes="explicit")
 
 
 def run_checks(

@@ -201,7 +201,7 @@ class GateResult:
         return {"case": self.case, "engine": self.engine, "unchanged": self.unchanged,
                 "inputs_changed": self.inputs_changed, "structure": self.structure,
                 "largest_ratio": self.largest_ratio,
-                "moved": [dataclasses.asdict(m) for m in self.moved],
+                "moved": [{**dataclasses.asdict(m), "ratio": m.ratio} for m in self.moved],
                 "work": [{**dataclasses.asdict(w), "limit": w.limit, "relative": w.relative, "grew": w.grew,
                           "text": w.describe()} for w in self.work],
                 "work_ratio": self.work_ratio, "work_summary": self.work_summary()}

@@ -104,7 +104,9 @@ def test_two_plug_ins_cannot_own_one_table(monkeypatch, fresh_registry):
 def test_each_engine_reads_its_own_settings_and_perturbs_its_own_tolerance():
     case = load_case("p4_hohmann")
     ref, exu = reg.settings_of(case, "reference"), reg.settings_of(case, "exudyn")
-    assert ref.rtol == 1e-7 and ref.quiet_integrator == "imex"  # [solver] rtol, [reference]
+    assert ref.rtol == 1e-7 and ref.quiet_integrator is None  # [solver] rtol; no [reference] table
+    flex = reg.settings_of(load_case("motor_step"), "reference")
+    assert flex.n_modes == (4,) * 6 and flex.static_modes == "explicit"  # its [reference] table
     assert exu.newton_atol == 1e-4 and exu.newton_atol_scale is None  # [exudyn]
     stepped = reg.step_perturbed_settings(case.engine_settings, 1.001)
     assert stepped["reference"].rtol == pytest.approx(1.001e-7, rel=1e-15)

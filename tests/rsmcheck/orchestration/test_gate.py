@@ -162,6 +162,8 @@ def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
     assert m.change == pytest.approx(1e-6, rel=1e-6) and m.component == 1
     t_kept = nominal.observables["time"][g.index]
     assert m.first_time == t_kept[t_kept >= nominal.observables["time"][30]][0]
+    # what the report reads: the ratio travels with the dict
+    assert res.as_dict()["moved"][0]["ratio"] == pytest.approx(m.change / m.tolerance)
 
     # changed inputs are reported as such, not as numbers; reworded prose is not a change
     path = Path(case.path)
