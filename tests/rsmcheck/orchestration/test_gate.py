@@ -41,6 +41,7 @@ description = "a tiny valid case for the gate"
 duration = 0.05
 [initial]
 grasp = [1, 0]
+joint_rates = [0.05, -0.05, 0.05, 0.0, 0.0, 0.0]
 [solver]
 control_period = 1e-3
 output_period = 1e-3
@@ -93,8 +94,9 @@ def test_gate_tolerances_are_measured_from_the_perturbed_run(tiny_runs):
 def test_the_step_perturbation_changes_only_rtol_and_bounds_the_tolerance(tiny, tiny_runs):
     """The reference's third bless run: rtol × (1 + STEP_PERTURBATION), nothing else of the
     reference (Exudyn's Newton tolerance is scaled as well, next test); it takes
-    another step sequence (a different count of steps or rejections), and STEP_FACTOR × its
-    change is a lower bound of every gate tolerance."""
+    another step sequence (other step sizes: the run differs), and STEP_FACTOR × its
+    change is a lower bound of every gate tolerance.  The tiny case moves its arm, so that
+    the steps are the error control's, not the control period's."""
     case, _ = tiny
     stepped_case = step_perturbed_case(case)
     assert stepped_case.engine_settings["reference"].rtol == pytest.approx(case.engine_settings["reference"].rtol * (1 + STEP_PERTURBATION), rel=1e-15)
@@ -102,9 +104,7 @@ def test_the_step_perturbation_changes_only_rtol_and_bounds_the_tolerance(tiny, 
     nominal, perturbed = tiny_runs
     engine = ReferenceEngine(stepped_case)
     stepped = run(engine, stepped_case, stepped_case.duration)
-    reference = ReferenceEngine(case)
-    run(reference, case, case.duration)
-    assert (engine.steps, engine.rejected) != (reference.steps, reference.rejected)
+    assert engine.steps > 2 * len(stepped.observables["time"])  # error control sets the steps
     tol, delta, delta_step = measured_tolerances(nominal, perturbed, stepped)
     assert delta_step["ee2_pos_B"] > 0.0
     for name, d in delta_step.items():
