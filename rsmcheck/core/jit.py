@@ -1,0 +1,61 @@
+"""Where numba keeps the compiled kernels: a folder per version of the sources.
+
+numba's own cache (`@njit(cache=True)`) checks only the file that defines a function: a
+cached right-hand side that calls or inlines a kernel of another module is not recompiled
+when that module changes, and runs the old physics.  For a suite whose users change the
+model and rerun it, that is a wrong answer, not a slow one.  So the cache lives in a
+folder named after a digest of every source file of rsmcheck and of the engine plug-ins
+registered with it (entry-point group `rsmcheck.engines`): any change of any of them
+compiles afresh, an unchanged tree reuses its kernels.
+
+`use_source_keyed_cache()` sets it, once, before the first kernel is decorated; every
+package with compiled kernels calls it in its `__init__` (only those import this module,
+and with it numba).  NUMBA_CACHE_DIR, when set,
+is the user's choice and is left alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+from importlib import metadata
+from pathlib import Path
+
+import numba
+
+_DONE = False
+
+
+def _package_dirs() -> list[Path]:
+    """rsmcheck's folder and the folder of every registered engine plug-in's top package."""
+    dirs = [Path(__file__).resolve().parents[1]]
+    for ep in metadata.entry_points(group="rsmcheck.engines"):
+        spec = importlib.util.find_spec(ep.value.split(":")[0].split(".")[0])
+        if spec is not None and spec.submodule_search_locations:
+            dirs += [Path(p).resolve() for p in spec.submodule_search_locations]
+    return sorted(set(dirs))
+
+
+def source_key() -> str:
+    """Digest of the names and contents of every .py file of the packages above."""
+    h = hashlib.sha256()
+    for d in _package_dirs():
+        for p in sorted(d.rglob("*.py")):
+            h.update(str(p.relative_to(d.parent)).encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cache_root() -> Path:
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rsmcheck" / "numba"
+
+
+def use_source_keyed_cache() -> None:
+    """Point numba's cache at cache_root()/source_key() unless NUMBA_CACHE_DIR is set."""
+    global _DONE
+    if _DONE or os.environ.get("NUMBA_CACHE_DIR"):
+        _DONE = True
+        return
+    numba.config.CACHE_DIR = str(cache_root() / source_key())
+    _DONE = True
