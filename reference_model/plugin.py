@@ -50,15 +50,19 @@ class ReferencePlugin:
         return FAULTS
 
     #: what `refined_options` refines, for the tables of `rsmcheck budget`
-    refinement = "rtol/10"
+    refinement = "rtol/10, h ≤ Δt/2"
 
     def refined_options(self, case):
         """The constructor options of a finer run of `case` (the variant to run): the
         relative tolerance of every integrator a tenth of the case's (the absolute ones
-        follow it, reference_model/stepper.py); the integrators and h_max stay the case's.
-        `rsmcheck budget` takes the difference to that run as the engine's integration
-        error."""
-        return {"rtol": settings_of(case, self.name).rtol / 10}
+        follow it, reference_model/stepper.py) and the largest step half the control
+        period.  The step bound matters: with the static shapes slaved DP5 often takes one
+        step per sample, well inside rtol, and a tenth of rtol alone then repeats the same
+        steps to the bit (a zero error that is no estimate).  `rsmcheck budget` takes the
+        difference to that run as the engine's integration error."""
+        given = settings_of(case, self.name)
+        h_max = min(given.h_max or case.solver.control_period, case.solver.control_period) / 2
+        return {"rtol": given.rtol / 10, "h_max": h_max}
 
     # the engine's own linearisation and timing, imported when called
     linear_plant = deferred("reference_model.modes", "linear_plant")

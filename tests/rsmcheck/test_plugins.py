@@ -116,11 +116,14 @@ def test_each_engine_reads_its_own_settings_and_perturbs_its_own_tolerance():
 
 def test_each_engine_declares_its_finer_run_for_the_budget():
     """`refined_options` (rsmcheck budget): the reference's rtol exactly a tenth of the
-    case's, of the variant run (p4 short: 1e-7); Exudyn's substeps twice the case's
+    case's, of the variant run (p4 short: 1e-7), and its step at most half the control
+    period (1 ms: 0.5 ms), so that a run at one step per sample is refined too; Exudyn's
+    substeps twice the case's
     (motor_step: 128 → 256) or twice the engine's default where the case gives none
     (free_drift); a plug-in without it (Pinocchio) is None."""
     p4, motor, drift = load_case("p4_hohmann").variant(True), load_case("motor_step"), load_case("free_drift")
-    assert reg.refined_options("reference", p4) == {"rtol": reg.settings_of(p4, "reference").rtol / 10}
+    assert reg.refined_options("reference", p4) == {"rtol": reg.settings_of(p4, "reference").rtol / 10,
+                                                    "h_max": 0.5e-3}
     assert reg.refined_options("reference", motor)["rtol"] == 1e-9 / 10
     assert reg.refined_options("exudyn", motor) == {"substeps": 2 * reg.settings_of(motor, "exudyn").substeps} \
         == {"substeps": 256}

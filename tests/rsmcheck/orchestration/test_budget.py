@@ -143,7 +143,7 @@ def test_the_command_runs_each_engine_at_the_case_settings_and_refined(fake_engi
     assert main(["budget", "p1_rigid_gains", "--short", "--serial", "--suggest", "--out", str(out)]) == 0
     case = load_case("p1_rigid_gains").variant(True)
     assert sorted(map(str, fake_engines)) == sorted(map(str, [
-        (A, case.name, True, {}), (A, case.name, True, {"rtol": settings_of(case, A).rtol / 10}),
+        (A, case.name, True, {}), (A, case.name, True, {"rtol": settings_of(case, A).rtol / 10, "h_max": 0.5e-3}),
         (B, case.name, True, {}), (B, case.name, True, {"substeps": 2 * settings_of(case, B).substeps})]))
     stdout, stderr = capsys.readouterr()
     assert "4 runs in this process" in stderr and stderr.count("] p1_rigid_gains / ") == 4
@@ -156,7 +156,7 @@ def test_the_command_runs_each_engine_at_the_case_settings_and_refined(fake_engi
     doc = json.loads(out.read_text())
     entry = doc["variants"]["short"]["p1_rigid_gains"]
     assert entry["engines"] == [A, B] and entry["machine"]["logical_cpus"] >= 1 and entry["failures"] == {}
-    assert entry["runs"][A]["refined"]["options"] == {"rtol": settings_of(case, A).rtol / 10}
+    assert entry["runs"][A]["refined"]["options"] == {"rtol": settings_of(case, A).rtol / 10, "h_max": 0.5e-3}
     assert entry["runs"][B]["refined"]["options"] == {"substeps": 128}
     assert entry["runs"][B]["case"]["case_settings"] == {"substeps": 64}
     assert entry["refinements"] == {A: plugin(A).refinement, B: plugin(B).refinement}
