@@ -35,12 +35,12 @@ from typing import Callable
 import numpy as np
 
 from rsmcheck.core.cases import ControllerSpec
-from rsmcheck.driver import control_kernels as ck
 from rsmcheck.core.programme import ArmCommand, Segment
 from rsmcheck.core.engine import Inputs, Sensors
 from rsmcheck.core.geometry import arm_jacobian, arm_pins, rot
 from rsmcheck.core.params import Params
 from rsmcheck.core.trajectories import Quintic, quintic
+from rsmcheck.driver import control_kernels as ck
 
 Controller = Callable[[Sensors], Inputs]
 
@@ -296,7 +296,7 @@ class ProgrammeController:
         self.com_align: "ComAlignment | None" = None
         self.log: list[tuple[float, str, str]] = []  # events for the runner (time, kind, detail)
         # what the compiled laws read (control_kernels): the constants and the base mode
-        # (`law`), the references (`refs`, rebuilt by `_describe` whenever they change), the
+        # (`law`), the references (`refs_table`, rewritten by `_describe` when they change), the
         # rate filter's state (`filt`: last sample time, NaN before the first; the joint-rate
         # estimate used by eq. 14) and the inputs (`out`)
         law = np.zeros(ck.LAW_SIZE)
