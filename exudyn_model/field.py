@@ -41,6 +41,7 @@ with contextlib.redirect_stdout(io.StringIO()):
     import exudyn as exu  # noqa: E402
 
 from exudyn_model import links  # noqa: E402
+from rsmcheck.driver.control_kernels import fma  # noqa: E402
 
 N_GAUSS_FIELD = 4  # Gauss points per element for the tidal field, energy and momentum
 
@@ -249,6 +250,15 @@ class FieldForces:
         return out
 
 
+@njit(cache=True)
+def held_minus_uniform(q_held, U, ax, ay, out):  # pragma: no cover - compiled
+    """out = Q − U a for a = (ax, ay) (at every sample, and at every step of a burn: one pass,
+    no temporaries), row i rounded as numpy's product U @ a (OpenBLAS: fma(U_i0, a_x, U_i1 a_y);
+    on this model's U, one entry per row, it is also the plain sum)."""
+    for i in range(U.shape[0]):
+        out[i] = q_held[i] - fma(U[i, 0], ax, U[i, 1] * ay)
+
+
 class _ThrustInertia:
     """The uniform thrust-inertia field −(T/m_sys) A(θ_B) e_x of physics.md §5, evaluated at
     every time step (a `PreStepUserFunction`): its direction follows the base attitude
@@ -278,8 +288,11 @@ class _ThrustInertia:
         self.t_last = t_start
 
     def forces(self, theta_b: float) -> np.ndarray:
-        a = self.accel * np.array([math.cos(theta_b), math.sin(theta_b)])
-        return self.q_held - self.U @ a
+        """The carrier's forces with the base at attitude θ_B: Q_tidal − U a,
+        a = (T/m_sys)(cos θ_B, sin θ_B) (`held_minus_uniform`)."""
+        out = np.empty(len(self.q_held))
+        held_minus_uniform(self.q_held, self.U, self.accel * math.cos(theta_b), self.accel * math.sin(theta_b), out)
+        return out
 
     def __call__(self, mbs, t: float) -> bool:
         if self.accel == 0.0:

@@ -14,14 +14,32 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from exudyn_model import field as fld
 from exudyn_model import links, reactions
 from exudyn_model.build import perp
 from exudyn_model.field import N_GAUSS_FIELD
+from exudyn_model.indices import SENSOR_SIZE
 from exudyn_model.state import EngineState, base_mass, coordinates, system_mass
 from rsmcheck.core.engine import Inputs, Sensors
 from rsmcheck.core.geometry import rot
+
+
+@njit(cache=True)
+def gather_sensors(q, v, table, com_x, com_y, out):  # pragma: no cover - compiled
+    """The sensors of one sample into `out` (`indices.SENSOR_LAYOUT`), in one call: row j of
+    `table` (`indices.sensor_table`) = (0: q, 1: q̇; i; k) gives out[j] = x[i] − x[k], or
+    x[i] for k < 0; then the system COM in base axes, A(θ_B)ᵀ (r_COM − r_B) =
+    (c d_x + s d_y, −s d_x + c d_y), from the COM (com_x, com_y) and base_pose_I (out[0:3])."""
+    for j in range(table.shape[0]):
+        x = q if table[j, 0] == 0 else v
+        i, k = table[j, 1], table[j, 2]
+        out[j] = x[i] - x[k] if k >= 0 else x[i]
+    c, s = math.cos(out[2]), math.sin(out[2])
+    dx, dy = com_x - out[0], com_y - out[1]
+    out[58] = c * dx + s * dy
+    out[59] = -s * dx + c * dy
 
 
 def _cross(a, b) -> float:
@@ -60,6 +78,9 @@ class Observer:
         self.orbit = bool(orbit)
         self.capture_arm = capture_arm
         self.capture_point = capture_point
+        ix = model.index
+        # the COM's point masses (`com`): base and target x, y
+        self.com_points = (int(ix.i_base[0]), int(ix.i_base[1]), int(ix.i_target[0]), int(ix.i_target[1]))
 
     def grasp_forces(self, inputs=None) -> np.ndarray:
         """`reaction_forces_I` at the current state (`reactions.grasp_forces`), with `inputs`
@@ -82,31 +103,32 @@ class Observer:
         return q[ix.i_target[2]] - q[ix.wrist_hub]
 
     def sensors(self) -> Sensors:
-        """At every control sample: the coordinates gathered in one index array
-        (`index.sensor_rows`, indices.py), the sensors its slices and their differences."""
+        """At every control sample: every coordinate, rate and difference in one compiled
+        gather (`gather_sensors`, rows `index.sensor_table`) into one buffer whose slices are the
+        sensors, with the COM of `com` (the same arithmetic, on floats)."""
         model, state = self.model, self.state
         q, v = coordinates(model, state)
         ix = model.index
-        qs, vs = q[ix.sensor_rows], v[ix.sensor_rows]
-        at = ix.sensor_at
-        if ix.ee is not None:
-            rE, rEd = qs[at["ee"]].reshape(2, 2), vs[at["ee"]].reshape(2, 2)
-        else:
+        p = model.params
+        mB = base_mass(p, state)
+        m = system_mass(p, state)
+        first = ix.link_first @ q[ix.link_coords]
+        bx, by, tx, ty = self.com_points
+        mT = p.target.mass
+        buf = np.empty(SENSOR_SIZE)
+        gather_sensors(q, v, ix.sensor_table, (mB * q[bx] + mT * q[tx] + first[0]) / m,
+                       (mB * q[by] + mT * q[ty] + first[1]) / m, buf)
+        if ix.ee is None:
             rE, rEd = end_effectors(model, q, v)
-        com, m = self.com(q)
-        base, hub, hub_parent, frame, frame_parent = (at["base"], at["hub_prox"], at["hub_parent"], at["frame"],
-                                                      at["frame_parent"])
-        AB_T = rot(qs[base][2]).T
+            buf[44:48], buf[48:52] = rE.reshape(-1), rEd.reshape(-1)
         return Sensors(
-            time=state.t, base_pose_I=qs[base], base_rate_I=vs[base],
-            joint_angles=qs[hub] - qs[hub_parent], joint_rates=vs[hub] - vs[hub_parent],
-            joint_frame_angles=qs[frame] - qs[frame_parent], joint_frame_rates=vs[frame] - vs[frame_parent],
-            wrist_angles=qs[at["target"]][2] - qs[at["wrist_hub"]],
-            motor_angles=qs[at["rotor"]], motor_rates=vs[at["rotor"]],
-            ee_pos_I=rE, ee_vel_I=rEd,
-            target_pose_I=qs[at["target"]], target_rate_I=vs[at["target"]],
-            com_pos_B=AB_T @ (com - qs[base][:2]), grasp_state=state.grasp_on.copy(),
-            system_mass=m, orbit_r_I=state.r_O.copy(), orbit_v_I=state.v_O.copy())
+            time=state.t, base_pose_I=buf[0:3], base_rate_I=buf[3:6], joint_angles=buf[6:12],
+            joint_rates=buf[12:18], joint_frame_angles=buf[18:24], joint_frame_rates=buf[24:30],
+            wrist_angles=buf[30:32], motor_angles=buf[32:38], motor_rates=buf[38:44],
+            ee_pos_I=buf[44:48].reshape(2, 2), ee_vel_I=buf[48:52].reshape(2, 2),
+            target_pose_I=buf[52:55], target_rate_I=buf[55:58], com_pos_B=buf[58:60],
+            grasp_state=state.grasp_on.copy(), system_mass=m, orbit_r_I=state.r_O.copy(),
+            orbit_v_I=state.v_O.copy())
 
     def observables(self, inputs: Inputs) -> dict:
         """Every observable (docs/physics.md §11) at the current sample, `inputs` held from it."""

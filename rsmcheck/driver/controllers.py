@@ -18,6 +18,12 @@ applies the saturations of Tables 3–4 (|τ_B| ≤ 12 N·m, |τ_m| ≤ 80 N·m)
 Desired conditions are fixed (hold, freeze) or quintic moves (`rsmcheck.core.trajectories`).
 The programme (which arm does what, when) is a sequence of segments of the case file, run
 by `ProgrammeController` together with `rsmcheck.driver.runner`.
+
+The laws run compiled at every sample (`rsmcheck.driver.control_kernels.programme_inputs`):
+the classes here hold the configuration and the programme, and describe the references to
+the kernel as rows of numbers (`ArmReference.row`).  The Python formulas below (`measure`,
+`base_pd`, `jacobian_transpose`, the references' `__call__`, `retrograde_attitude`) state
+the same equations; the kernel reproduces them to the bit (tests/rsmcheck/test_control_kernels.py).
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ from rsmcheck.core.engine import Inputs, Sensors
 from rsmcheck.core.geometry import arm_jacobian, arm_pins, rot
 from rsmcheck.core.params import Params
 from rsmcheck.core.trajectories import Quintic, quintic
+from rsmcheck.driver import control_kernels as ck
 
 Controller = Callable[[Sensors], Inputs]
 
@@ -166,6 +173,11 @@ class ArmReference:
         the target."""
         return None
 
+    def row(self) -> list[float]:  # pragma: no cover - interface
+        """The reference for the compiled controller: kind (`control_kernels.REF_*`) and
+        parameters, in the layout of `control_kernels._desired`."""
+        raise NotImplementedError
+
 
 class Fixed(ArmReference):
     def __init__(self, pose):
@@ -176,6 +188,9 @@ class Fixed(ArmReference):
 
     def goal(self):
         return self.pose
+
+    def row(self):
+        return [ck.REF_FIXED, *self.pose.tolist()]
 
 
 class Move(ArmReference):
@@ -189,6 +204,9 @@ class Move(ArmReference):
 
     def goal(self):
         return self.q.p1
+
+    def row(self):
+        return [ck.REF_MOVE, *_quintic_row(self.q)]
 
 
 class Approach(ArmReference):
@@ -208,6 +226,10 @@ class Approach(ArmReference):
         s, _, _ = quintic(t, self.t0, self.duration)
         p = self.start[:2] + s * (self.point_B(m) - self.start[:2])
         return np.array([p[0], p[1], self.phi(t)[0]])
+
+    def row(self):
+        return [ck.REF_APPROACH, *self.start.tolist(), *self.point_T.tolist(), float(self.phi.p1[0]),
+                float(self.t0), float(self.duration)]
 
 
 class Held(ArmReference):
@@ -229,6 +251,21 @@ class Held(ArmReference):
     def goal(self):
         final = getattr(self.target_ref, "final_pose", None)
         return self._ee(final()) if final is not None else None
+
+    def row(self):
+        target = self.target_ref
+        if isinstance(target, ComAlignment):
+            target = target.move if target.move is not None else target.pose
+        if isinstance(target, Quintic):
+            path = [ck.TARGET_QUINTIC, *_quintic_row(target)]
+        else:
+            path = [ck.TARGET_FIXED, *np.asarray(target, float).tolist(), 0.0, 0.0, 0.0, 0.0, 0.0]
+        return [ck.REF_HELD, *path, *self.rho.tolist(), float(self.psi0)]
+
+
+def _quintic_row(q: Quintic) -> list[float]:
+    """p0 (3), p1 (3), t0, T of a quintic move."""
+    return [*q.p0.tolist(), *q.p1.tolist(), float(q.t0), float(q.duration)]
 
 
 # ---------------------------------------------------------------------------------------
@@ -258,15 +295,50 @@ class ProgrammeController:
         self.segment: Segment | None = None
         self.com_align: "ComAlignment | None" = None
         self.log: list[tuple[float, str, str]] = []  # events for the runner (time, kind, detail)
-        self.rates = np.zeros(6)  # the joint-rate estimate used by eq. (14)
-        self.t_prev: float | None = None
+        # what the compiled laws read (control_kernels): the constants and the base mode
+        # (`law`), the references (`refs_table`, rewritten by `_describe` when they change), the
+        # rate filter's state (`filt`: last sample time, NaN before the first; the joint-rate
+        # estimate used by eq. 14) and the inputs (`out`)
+        law = np.zeros(ck.LAW_SIZE)
+        for k, arm in enumerate(self.arms):
+            law[ck.L_MOUNT + 2 * k:ck.L_MOUNT + 2 * k + 2] = arm.mount_x, arm.mount_y
+            law[ck.L_KP + 3 * k:ck.L_KP + 3 * k + 3] = self.kp[k]
+            law[ck.L_KD + 3 * k:ck.L_KD + 3 * k + 3] = self.kd[k]
+        law[ck.L_LENGTH] = params.link.length
+        law[ck.L_BASE_KP], law[ck.L_BASE_KD] = spec.base.kp, spec.base.kd
+        law[ck.L_MU] = params.orbit.mu
+        law[ck.L_TAU_M_MAX], law[ck.L_TAU_B_MAX] = params.motor.torque_max, params.actuators.torque_max
+        law[ck.L_KINEMATIC] = 1.0 if spec.feedback == "kinematic" else 0.0
+        law[ck.L_FILTER_HZ] = spec.rate_filter_hz
+        law[ck.L_PERIOD] = period
+        self.law = law
+        self.refs_table = np.zeros((2, ck.REF_SIZE))
+        self.filt = np.full(7, math.nan)
+        self.filt[1:] = 0.0
+        self.out = np.zeros(7)
+        self._describe()
+
+    @property
+    def rates(self) -> np.ndarray:
+        """The joint-rate estimate used by eq. (14) (the rate filter's output)."""
+        return self.filt[1:]
+
+    def _describe(self) -> None:
+        """Write the references and the base mode into the compiled law's arrays."""
+        for k, ref in enumerate(self.refs):
+            row = [ck.REF_OPEN, *self.open_loop[k].tolist()] if ref is None else ref.row()
+            self.refs_table[k] = 0.0
+            self.refs_table[k, :len(row)] = row
+        self.law[ck.L_BASE_MODE] = {"off": ck.BASE_OFF, "retrograde": ck.BASE_RETROGRADE}.get(self.base_mode,
+                                                                                             ck.BASE_GOAL)
+        self.law[ck.L_BASE_GOAL] = self.base_goal
 
     # ---- programme ------------------------------------------------------------------
     def start(self, s: Sensors) -> None:
         """First sample of the case: remember the configuration for `freeze`."""
         self.frozen = measure(s, self.arms, self.spec.feedback)
         self.frozen_base = float(s.base_pose_I[2])
-        self.rates = np.asarray(s.joint_rates, float).copy()
+        self.filt[1:] = s.joint_rates
 
     def enter(self, seg: Segment, s: Sensors) -> None:
         self.segment = seg
@@ -298,6 +370,7 @@ class ProgrammeController:
         for k, cmd in enumerate((seg.arm1, seg.arm2)):
             self.refs[k] = self._reference(k, cmd, m, t0, seg, target_ref)
             self.open_loop[k] = np.array(cmd.torques if cmd.mode == "torque" else (0.0, 0.0, 0.0), float)
+        self._describe()
 
     def _reference(self, k: int, cmd: ArmCommand, m: Measured, t0: float, seg: Segment,
                    target_ref) -> ArmReference | None:
@@ -333,44 +406,22 @@ class ProgrammeController:
         """A grasp closed: the capturing arm holds where it is (until the next segment)."""
         m = measure(s, self.arms, self.spec.feedback)
         self.refs[arm - 1] = Fixed(m.ee_B[arm - 1])
+        self._describe()
 
     # ---- the laws ---------------------------------------------------------------------
     def __call__(self, s: Sensors) -> Inputs:
-        m = measure(s, self.arms, self.spec.feedback)
+        """Eqs. (13)–(14) with the references of the segment, the rate filter and the
+        saturations, compiled (`control_kernels.programme_inputs`)."""
         t = s.time
-        # joint-rate estimate: first-order low-pass (discrete, one update per sample, exact
-        # for the sample interval, which a quiet segment may lengthen)
-        dt = self.period if self.t_prev is None or t <= self.t_prev else t - self.t_prev
-        self.t_prev = t
-        fc = self.spec.rate_filter_hz
-        alpha = 1.0 - math.exp(-2.0 * math.pi * fc * dt) if fc > 0 else 1.0
-        self.rates += alpha * (np.asarray(s.joint_rates, float) - self.rates)
         if self.com_align is not None:
             note = self.com_align.update(t, s)
             if note:
                 self.log.append((t, "com_align", note))
-        tau: list[float] = []
-        q = s.joint_angles.tolist()
-        rates = self.rates.tolist()
-        for k in range(2):
-            ref = self.refs[k]
-            if ref is None:  # off or open loop
-                tau += self.open_loop[k].tolist()
-                continue
-            err = (m.ee_B[k] - ref(t, m)).tolist()
-            err[2] = math.remainder(err[2], 2.0 * math.pi)
-            tau += jacobian_transpose(self.arms[k].pins_list(q[3 * k:3 * k + 3]), err, rates[3 * k:3 * k + 3],
-                                      self.kp[k], self.kd[k])
-        tau_B = 0.0
-        b = self.spec.base
-        if self.base_mode != "off":
-            if self.base_mode == "retrograde":
-                goal, rate = retrograde_attitude(s.orbit_r_I, s.orbit_v_I, self.params.orbit.mu)
-                goal = wrap_near(goal, s.base_pose_I[2])
-            else:
-                goal, rate = self.base_goal, 0.0
-            tau_B = base_pd(s.base_pose_I[2], s.base_rate_I[2], goal, rate, b.kp, b.kd)
-        return saturate(Inputs(tau_m=np.array(tau), tau_B=tau_B, thrust=self.thrust), self.params)
+                self._describe()  # a new move of the target
+        out = self.out
+        ck.programme_inputs(t, s.base_pose_I, s.base_rate_I, s.joint_angles, s.joint_rates, s.ee_pos_I,
+                            s.target_pose_I, s.orbit_r_I, s.orbit_v_I, self.law, self.refs_table, self.filt, out)
+        return Inputs(tau_m=out[:6].copy(), tau_B=float(out[6]), thrust=self.thrust)
 
 
 def retrograde_attitude(r, v, mu: float) -> tuple[float, float]:

@@ -30,12 +30,12 @@ from typing import Callable
 import numpy as np
 
 from rsmcheck.core.cases import Case
-from rsmcheck.driver.controllers import ProgrammeController, make_controller
 from rsmcheck.core.engine import Engine, Inputs, Sensors
 from rsmcheck.core.errors import InputError, SimulationDiverged
-from rsmcheck.core.geometry import rot
 from rsmcheck.core.observables import NAMES
 from rsmcheck.core.store import EngineRun, Event, Phase
+from rsmcheck.driver import control_kernels
+from rsmcheck.driver.controllers import ProgrammeController, make_controller
 
 Progress = Callable[[str, float, float], None]
 
@@ -45,24 +45,30 @@ SPLIT = ("sensors", "controller", "advance", "observe")
 
 
 def capture_point(s: Sensors, rho_T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inertial position and velocity of the target point ρ_T (target frame, about the COM)."""
-    lever = rot(s.target_pose_I[2]) @ rho_T
-    v = s.target_rate_I[:2] + s.target_rate_I[2] * np.array([-lever[1], lever[0]])
-    return s.target_pose_I[:2] + lever, v
+    """Inertial position and velocity of the target point ρ_T (target frame, about the COM):
+    p = r_T + A(θ_T) ρ_T, v = ṙ_T + θ̇_T e_z × A(θ_T) ρ_T (`control_kernels.capture_point`)."""
+    rho = np.asarray(rho_T, float)
+    px, py, vx, vy = control_kernels.capture_point(s.target_pose_I, s.target_rate_I, float(rho[0]), float(rho[1]))
+    return np.array([px, py]), np.array([vx, vy])
 
 
 def if_conditions(s: Sensors, arm: int, rho_T: np.ndarray, distance: float, speed: float) -> tuple[bool, float, float]:
-    """Both IF conditions of capture for `arm`, with the measured gap and relative speed."""
-    p, v = capture_point(s, rho_T)
-    gap = float(np.linalg.norm(s.ee_pos_I[arm - 1] - p))
-    rel = float(np.linalg.norm(s.ee_vel_I[arm - 1] - v))
+    """Both IF conditions of capture for `arm` (Sect. 2): |r_EE − p| < `distance` and
+    |ṙ_EE − v| < `speed` at the target point ρ_T (`capture_point`), with the measured gap
+    and relative speed (`control_kernels.supervise`)."""
+    out = np.empty(4)
+    control_kernels.supervise(s.target_pose_I, s.target_rate_I, s.ee_pos_I, s.ee_vel_I, s.wrist_angles,
+                              s.grasp_state, arm, np.asarray(rho_T, float), math.inf, out)
+    gap, rel = float(out[2]), float(out[3])
     return gap < distance and rel < speed, gap, rel
 
 
 def capture_gap_B(s: Sensors, arm: int, rho_T: np.ndarray) -> np.ndarray:
-    """End effector `arm` minus the target point ρ_T, base axes (the observable of Fig. 10)."""
-    p, _ = capture_point(s, rho_T)
-    return rot(s.base_pose_I[2]).T @ (s.ee_pos_I[arm - 1] - p)
+    """End effector `arm` minus the target point ρ_T, base axes (the observable of Fig. 10):
+    A(θ_B)ᵀ (r_EE − p) (`control_kernels.capture_gap`)."""
+    out = np.empty(2)
+    control_kernels.capture_gap(s.base_pose_I, s.target_pose_I, s.ee_pos_I, arm, np.asarray(rho_T, float), out)
+    return out
 
 
 def terminal_progress(engine: str, case: str) -> Progress | None:
@@ -130,6 +136,11 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
     # where the wall time goes (rsmcheck bench): the per-sample calls, timed here for every engine
     clock = wallclock.perf_counter
     spent = dict.fromkeys(SPLIT, 0.0)
+    supervise, capture_gap = control_kernels.supervise, control_kernels.capture_gap
+    seen = np.zeros(4)  # the supervisor's measurements (control_kernels.supervise)
+    no_point = np.zeros(2)
+    wrist_limit = params.wrist.limit
+    capture_distance, capture_speed = params.grasp.capture_distance, params.grasp.capture_speed
     while True:
         tic = clock()
         s = engine.sensors()
@@ -166,27 +177,32 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
             else:
                 armed = None
             programme.enter(seg, s)
-        if armed is not None and not s.grasp_state[armed[0] - 1]:
-            arm_c, rho_c = armed
-            ok, gap, speed = if_conditions(s, arm_c, rho_c, params.grasp.capture_distance, params.grasp.capture_speed)
-            if ok:
-                info = engine.capture(arm_c)
-                info.update(gap_m=gap, rel_speed_mps=speed)
-                events.append(Event(t, "capture", _detail(arm_c, info)))
-                s = engine.sensors()
-                armed = None
-                if programme is not None:
-                    programme.captured(arm_c, s)
-                    seg = segments[seg_index]
-                    if seg.until == "capture":
-                        seg_end = min(seg_end, t + seg.settle)
-        for arm in (1, 2):
-            psi_w = float(s.wrist_angles[arm - 1])
-            touching = bool(s.grasp_state[arm - 1]) and abs(psi_w) > params.wrist.limit
-            if touching != contact[arm - 1]:
-                contact[arm - 1] = touching
-                events.append(Event(t, "bistop_contact" if touching else "bistop_free",
-                                    f"arm={arm} psi={psi_w:.6f}"))
+        # the supervisor's measurements in one compiled call: the bistop contacts and, for
+        # an armed capture whose arm does not hold the target yet, the IF conditions' gap
+        # and relative speed
+        arm_c = armed[0] if armed is not None and not s.grasp_state[armed[0] - 1] else 0
+        supervise(s.target_pose_I, s.target_rate_I, s.ee_pos_I, s.ee_vel_I, s.wrist_angles, s.grasp_state,
+                  arm_c, armed[1] if arm_c else no_point, wrist_limit, seen)
+        if arm_c and seen[2] < capture_distance and seen[3] < capture_speed:
+            info = engine.capture(arm_c)
+            info.update(gap_m=float(seen[2]), rel_speed_mps=float(seen[3]))
+            events.append(Event(t, "capture", _detail(arm_c, info)))
+            s = engine.sensors()
+            armed = None
+            if programme is not None:
+                programme.captured(arm_c, s)
+                seg = segments[seg_index]
+                if seg.until == "capture":
+                    seg_end = min(seg_end, t + seg.settle)
+            supervise(s.target_pose_I, s.target_rate_I, s.ee_pos_I, s.ee_vel_I, s.wrist_angles, s.grasp_state,
+                      0, no_point, wrist_limit, seen)
+        if seen[0] != contact[0] or seen[1] != contact[1]:
+            for arm in (1, 2):
+                touching = bool(seen[arm - 1])
+                if touching != contact[arm - 1]:
+                    contact[arm - 1] = touching
+                    events.append(Event(t, "bistop_contact" if touching else "bistop_free",
+                                        f"arm={arm} psi={float(s.wrist_angles[arm - 1]):.6f}"))
         tic = clock()
         u: Inputs = controller(s)
         spent["controller"] += clock() - tic
@@ -197,7 +213,9 @@ def run(engine: Engine, case: Case, duration: float | None = None, progress: Pro
         if t >= next_out - eps or done:
             tic = clock()
             sample = engine.observe(u)
-            sample["capture_gap_B"] = capture_gap_B(s, report_arm, report_point)
+            gap = np.empty(2)
+            capture_gap(s.base_pose_I, s.target_pose_I, s.ee_pos_I, report_arm, report_point, gap)
+            sample["capture_gap_B"] = gap
             samples.append(sample)
             spent["observe"] += clock() - tic
             while next_out <= t + eps:

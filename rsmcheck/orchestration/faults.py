@@ -81,7 +81,7 @@ SHARED_FAULTS: tuple[Fault, ...] = (
     Fault("params_link_mass", "rsmcheck/core/params.py",
           'mass: float = _p(36.49, "Table 1.")', 'mass: float = _p(36.59, "Table 1.")',
           "parameter set: link mass 36.59 kg instead of 36.49 kg (Table 1 typo)"),
-    Fault("controller_rate_filter", "rsmcheck/driver/controllers.py",
+    Fault("controller_rate_filter", "rsmcheck/driver/control_kernels.py",
           "alpha = 1.0 - math.exp(-2.0 * math.pi * fc * dt) if fc > 0 else 1.0",
           "alpha = 1.0 - math.exp(-math.pi * fc * dt) if fc > 0 else 1.0",
           "controller: the rate filter's corner at f_c/2 (ω = π f_c instead of 2π f_c)"),

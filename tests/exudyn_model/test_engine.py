@@ -63,7 +63,7 @@ def test_initial_state_is_the_shared_one(free_drift, rigid):
 
 @pytest.mark.parametrize("rigid", [True, False])
 def test_sensors_read_the_coordinates_they_name(free_drift, rigid):
-    """The sensors are slices of one gather (`index.sensor_rows`): at a state where every
+    """The sensors are one compiled gather (`index.sensor_table`): at a state where every
     coordinate and rate differs, each must equal its definition by the index tables
     (`exudyn_model.indices`: ψ_J = proximal hub − parent's distal hub, θ_J = frame − parent frame,
     ψ_w = θ_T − terminal distal hub, the end effector = the tip node's x, y)."""
