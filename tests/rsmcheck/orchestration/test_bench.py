@@ -79,7 +79,8 @@ def test_jobs_must_be_a_positive_whole_number(capsys):
 
 def test_table_ends_with_the_speed_targets_the_runs_measure():
     """A full mission per engine and the RHS timings put the four speed targets under the
-    tables, each with its margin; a short bench shows only the RHS target."""
+    tables, each with its margin; a short bench shows the short cases' total and the RHS
+    target."""
     runs = [dict(_run("mission", e, {}), variant="full", wall_s=w, sim_s=5920.0,
                  phases=[{"phase": "p1_transport", "sim_s": 1200.0, "wall_s": 300.0}])
             for e, w in (("reference", 900.0), ("exudyn", 2000.0))]
@@ -88,12 +89,13 @@ def test_table_ends_with_the_speed_targets_the_runs_measure():
     text = table({"engines": ["reference", "exudyn"], "runs": runs, "rhs_us": rhs})
     block = text[text.index("speed target"):].splitlines()
     assert len(block) == 2 + 4
-    assert "≤ 120 s" in block[2] and " 0.133 " in block[2] and " no " in block[2]
+    assert "≤ 300 s" in block[2] and " 0.333 " in block[2] and " no " in block[2]
     assert "slowest p1_transport" in block[3] and " 0.200 " in block[3]
     assert "≤ 1200 s" in block[4] and " 0.600 " in block[4]
     assert "ABA" in block[5] and " 1.500 " in block[5] and " yes " in block[5]
     short = table({"engines": ["reference"], "runs": [_run("free_drift", "reference", {})], "rhs_us": rhs})
-    assert len(short[short.index("speed target"):].splitlines()) == 3
+    lines = short[short.index("speed target"):].splitlines()
+    assert len(lines) == 4 and lines[2].startswith("reference: all short cases ≤ 30 s")
 
 
 def test_table_starts_with_the_machine_the_runs_ran_on():
