@@ -267,7 +267,8 @@ class ReferenceModel:
     def complete(self, x: np.ndarray, cfg: Configuration) -> np.ndarray:
         """x with the condensed static shapes' slots filled from the rest of the state
         (condense.condense; a copy of x when they are not condensed)."""
-        return condense.condense(np.asarray(x, float), *self.core_args(cfg))[0]
+        xc = condense.condense(np.asarray(x, float), *self.core_args(cfg))[0]
+        return xc if self.condensed else np.array(xc, float)
 
     @property
     def coordinates(self) -> np.ndarray:

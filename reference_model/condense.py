@@ -237,7 +237,7 @@ def slaving_tables(m):
     return T, c, dws, cols, ncol
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def condense(x, m, sw):
     """The static shapes of every arm slaved to the rest of the state (module doc).
 
@@ -246,17 +246,19 @@ def condense(x, m, sw):
     not changed and its static slots are not read); per arm k, T[k] (6 × N_COLS) on the
     columns cols[k, :ncol[k]] of z (the others are zero: `slaving_tables`, by the arm's
     terminal basis and stop state); idx (2 × 6), the q-index of each shape (−1: none).
-    Explicit or no static shapes: ncol = 0 and idx = −1."""
+    Explicit or no static shapes: x itself (the caller must not write it), T and cols
+    without columns, ncol = 0 and idx = −1."""
+    ncol = np.zeros(2, dtype=np.int64)
+    if m.cond == 0:  # nothing slaved: x itself (not written), arrays without columns
+        return x, np.zeros((2, N_ARM, 0)), np.zeros((2, 0), dtype=np.int64), ncol, \
+            np.full((2, N_ARM), -1, dtype=np.int64)
     xc = x.copy()
     nq = m.nq
     ny = nq + 3
     ns = ny + 6
     T = np.zeros((2, N_ARM, N_COLS))
     cols = np.zeros((2, N_COLS), dtype=np.int64)
-    ncol = np.zeros(2, dtype=np.int64)
     idx = np.full((2, N_ARM), -1, dtype=np.int64)
-    if m.cond == 0:
-        return xc, T, cols, ncol, idx
     for i in range(6):
         for s in range(2):
             j = _slot(m, i, s)
@@ -311,7 +313,7 @@ def condense(x, m, sw):
     return xc, T, cols, ncol, idx
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def project(f, thmdd, T, cols, ncol, idx, m):
     """Pass the generalised force on the static shapes, f_s = f[idx], on to the coordinates
     they are slaved to: f_z += Tᵀ f_s (module doc), in place on f (Y) and on the rotors'

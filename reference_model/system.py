@@ -279,7 +279,7 @@ def assemble_reduced(x, u, m, sw):
     return Mz, fz, Gz, phi, phid, Bs, uJ, tauw, aO
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _assemble(x, u, m, sw):
     """`assemble`, and the slaving of the static shapes (T, cols, ncol, idx of
     `condense.condense`)."""
