@@ -138,17 +138,9 @@ def switch_basis(model: ReferenceModel, x: np.ndarray, cfg: Configuration, link:
     th_new = th_old + delta
     r = (rot(th_old) @ np.array([-om * w, om * xi + wd])
          - rot(th_new) @ np.array([-om_new * w_kept, om_new * xi + wd_kept]))
-    kin = model.kinematics(x[lay.q], x[lay.qd], cfg)
-    JR, Jth = kin.JR, kin.Jth
-    # ∂ṙ/∂q̇_i = ∂R/∂q_i + ∂θ/∂q_i A(θ')(−w', ξ) + [i = a'_j] A(θ') e_y φ_j
-    turn = rot(th_new) @ np.array([-w_kept, xi])
     n_new = np.array([-math.sin(th_new), math.cos(th_new)])
-    dropped = np.zeros(lay.ny)
-    dropped[:lay.nq] = (JR[link].T @ (rho * (r @ wq))
-                        + Jth[link] * (rho * np.sum(wq * np.sum(r * turn, axis=0))
-                                       + lk.inertia_extra * (om - om_new)))
-    if n:
-        dropped[sl] += rho * (phi_new.T * wq) @ (n_new @ r)
+    dropped = residual_momentum(model, x, cfg, link, xi, wq, r)
+    dropped[:lay.nq] += model.kinematics(x[lay.q], x[lay.qd], cfg).Jth[link] * lk.inertia_extra * (om - om_new)
     for i in arm_links:
         dropped += link_dropped_momentum(model, x, cfg, i, xi, wq, fields_before[i])
     # the transverse part n'·r is the rate residual ẇ' − Φ_new ȧ' of the least squares
@@ -170,12 +162,18 @@ def link_velocity_field(model: ReferenceModel, x: np.ndarray, cfg: Configuration
 
 def link_dropped_momentum(model: ReferenceModel, x: np.ndarray, cfg: Configuration, i: int,
                           xi: np.ndarray, wq: np.ndarray, before: np.ndarray) -> np.ndarray:
-    """The generalised momentum over Ẏ of link i's velocity residual r = ṙ_before − ṙ(x):
-    p = ∫ρ r·∂ṙ/∂Ẏ dξ (as `switch_basis` for the switched link), for a link whose slaved
-    static shapes the switch moved (condense.py)."""
+    """`residual_momentum` of link i's r = ṙ_before − ṙ(x), for a link whose slaved static
+    shapes the switch moved (condense.py)."""
+    return residual_momentum(model, x, cfg, i, xi, wq, before - link_velocity_field(model, x, cfg, i, xi))
+
+
+def residual_momentum(model: ReferenceModel, x: np.ndarray, cfg: Configuration, i: int,
+                      xi: np.ndarray, wq: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The generalised momentum over Ẏ of a velocity residual r(ξ) (2 × len(ξ)) over link
+    i's mass in state x: p = ∫ρ r·∂ṙ/∂Ẏ dξ, with
+    ∂ṙ/∂q̇_k = ∂R/∂q_k + ∂θ/∂q_k A(θ)(−w, ξ) + [k = a_j] A(θ) e_y φ_j."""
     lay = model.layout
     rho = model.params.link.rho_a
-    r = before - link_velocity_field(model, x, cfg, i, xi)
     kin = model.kinematics(x[lay.q], x[lay.qd], cfg)
     phi = model.bases[i][int(cfg.basis[i])].shapes(xi)
     sl = lay.modes(i)
