@@ -11,7 +11,7 @@ PYTEST_ARGS ?=
 PACKAGE_INITS := $(wildcard rsmcheck/__init__.py reference_model/__init__.py \
 	exudyn_model/__init__.py pinocchio_check/__init__.py report/__init__.py)
 
-.PHONY: venv test study report fullcheck faults clean
+.PHONY: venv test study report fullcheck faults fuzz clean
 
 venv: $(STAMP)
 
@@ -46,6 +46,17 @@ report: venv
 # length in both engines, compared with the cases' tolerances.  80–82 min on 2 cores (2026-11-26).
 fullcheck: venv
 	$(VENV)/bin/rsmcheck report --out out/full/report.html
+
+# The randomized cross-check's campaign of record (docs/fuzz.md), not in CI: FUZZ_N scenarios
+# of seed FUZZ_SEED, both engines at two resolutions (about an hour on 2 cores for 100;
+# --scheduler or $$RSMCHECK_SCHEDULER sends the runs to a cluster).  The scenarios and the
+# failing case files go to out/fuzz/, the document to docs/data/fuzz.json.
+FUZZ_N ?= 100
+FUZZ_SEED ?= 2026
+fuzz: venv
+	@rm -f out/fuzz/fuzz.json; status=0; $(VENV)/bin/rsmcheck fuzz --n $(FUZZ_N) --seed $(FUZZ_SEED) --out out/fuzz || status=$$?; \
+	if [ -f out/fuzz/fuzz.json ]; then cp out/fuzz/fuzz.json docs/data/fuzz.json.tmp && mv docs/data/fuzz.json.tmp docs/data/fuzz.json; fi; \
+	exit $$status
 
 clean:
 	rm -rf out build *.egg-info .pytest_cache

@@ -61,6 +61,18 @@ class ExudynPlugin:
         integration error."""
         return {"substeps": 2 * (settings_of(case, self.name).substeps or self.option_default("substeps"))}
 
+    #: what `finer_options` refines, for the tables of `rsmcheck fuzz`
+    finer = "2× elements per link, half the step"
+
+    def finer_options(self, case):
+        """The constructor options of a run of `case` refined in space and time: twice the
+        ANCF elements per link on top of `refined_options`' half step.  `rsmcheck fuzz` takes
+        the difference to that run as the engine's discretisation uncertainty."""
+        from exudyn_model import links
+
+        n = settings_of(case, self.name).n_elements or links.N_ELEMENTS_DEFAULT
+        return {**self.refined_options(case), "n_elements": 2 * n}
+
     # the engine's own linearisation and timing, imported when called
     linear_plant = deferred("exudyn_model.modes", "linear_plant")
     coupled_frequencies = deferred("exudyn_model.modes", "coupled_frequencies")

@@ -64,6 +64,19 @@ class ReferencePlugin:
         h_max = min(given.h_max or case.solver.control_period, case.solver.control_period) / 2
         return {"rtol": given.rtol / 10, "h_max": h_max}
 
+    #: what `finer_options` refines, for the tables of `rsmcheck fuzz`
+    finer = "2 more eigenmodes per link, rtol/10, h ≤ Δt/2"
+
+    def finer_options(self, case):
+        """The constructor options of a run of `case` refined in space and time: two more
+        eigenmodes per link (up to the model's six) on top of `refined_options`' step.
+        `rsmcheck fuzz` takes the difference to that run as the engine's discretisation
+        uncertainty: the modal truncation and the integration error together."""
+        from reference_model.build import N_MAX_MODES
+
+        n_modes = tuple(min(n + 2, N_MAX_MODES) for n in settings_of(case, self.name).n_modes)
+        return {**self.refined_options(case), "n_modes": n_modes}
+
     # the engine's own linearisation and timing, imported when called
     linear_plant = deferred("reference_model.modes", "linear_plant")
     coupled_frequencies = deferred("reference_model.modes", "coupled_frequencies")

@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
-from rsmcheck.orchestration import bench, budget, case_edit, compare, executor, gate
+from rsmcheck.orchestration import bench, budget, case_edit, compare, executor, fuzz, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import CAPABILITIES, available, engine_names, plugin, plugins, require
@@ -283,6 +283,33 @@ def _gate_cases(names: Sequence[str] | None) -> list:
     return cases
 
 
+def _cmd_fuzz(args: argparse.Namespace) -> int:
+    out = output_dir(args.out, "--out")
+    engines = _engine_names(args.engines, "--engines") if args.engines else None
+    doc = fuzz.campaign(args.n, args.seed, out, engines, workers=0 if args.serial else 2,
+                        progress=None if args.json else _progress, first=args.first)
+    path = fuzz.write_document(doc, out)
+    if args.json:
+        print(dumps_json(doc))
+    else:
+        print(fuzz.summary(doc))
+        print(f"wrote {path}")
+    return 0 if doc["failed"] == 0 else 1
+
+
+def _whole(least: int) -> Callable[[str], int]:
+    """An argparse type: a whole number of at least `least`."""
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if n < least:
+            raise argparse.ArgumentTypeError(f"must be at least {least}, got {n}")
+        return n
+    return parse
+
+
 def _progress(text: str) -> None:
     sys.stderr.write(f"  {text}\n")
     sys.stderr.flush()
@@ -349,10 +376,11 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "run": _cmd_run,
     "report": _cmd_report,
     "engines": _cmd_engines,
+    "fuzz": _cmd_fuzz,
 }
 
 
-SCHEDULER_HELP = (f"run the jobs of check, budget, gate, bless, report and bench on the Dask cluster whose "
+SCHEDULER_HELP = (f"run the jobs of check, budget, gate, bless, report, fuzz and bench on the Dask cluster whose "
                   f"scheduler is at ADDRESS (e.g. tcp://host:8786; ${executor.SCHEDULER_ENV} too; default: this "
                   f"machine's processes; docs/cluster.md)")
 CASES_DIR_HELP = (f"also read the case files of folder DIR (repeatable; before or after the command; "
@@ -445,6 +473,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
     p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
     p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
+    p = sub.add_parser("fuzz", help="randomized cross-check: N drawn scenarios, both engines at two resolutions")
+    p.add_argument("--n", type=_whole(1), default=10, help="number of scenarios (default 10)")
+    p.add_argument("--seed", type=_whole(0), default=0, help="the campaign's seed (default 0): scenario i of seed S "
+                                                         "is the same on every machine")
+    p.add_argument("--first", type=_whole(0), default=0, help="index of the first scenario (default 0)")
+    p.add_argument("--out", default=fuzz.DEFAULT_OUT, help=f"folder of the scenarios, the failing case files and "
+                                                            f"fuzz.json (default: {fuzz.DEFAULT_OUT})")
+    p.add_argument("--engines", metavar="A,B", help="the two engines, the model under test first "
+                                                     "(default: the default engines)")
+    p.add_argument("--json", action="store_true", help="the document on stdout: {\"scenarios\": [...], ...}")
+    p.add_argument("--serial", action="store_true", help="run one after the other in this process")
     sub.add_parser("bench", help="speed of each engine on the same work [--json] [--full]", add_help=False)
     sub.add_parser("engines", help="the registered engine plug-ins, what they offer, whether they are installed")
     for p_name, text in _plugin_commands().items():
@@ -468,7 +507,7 @@ DELEGATED = {"bench"}
 LISTINGS = {"cases", "modes"}
 
 #: commands whose runs go through rsmcheck.orchestration.runs.run_jobs (--scheduler)
-JOB_COMMANDS = {"check", "budget", "gate", "bless", "report"}
+JOB_COMMANDS = {"check", "budget", "gate", "bless", "report", "fuzz"}
 
 
 #: the global options that take a value, taken out of the arguments before the command is

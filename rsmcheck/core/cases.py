@@ -97,6 +97,8 @@ class ControllerSpec:
     motor_torques: tuple[float, ...] = (0.0,) * 6
     base_torque: float = 0.0
     ramp_time: float = 0.0  # "constant": smooth ramp-in time [s]; 0 = a step at t = 0
+    sine_amplitude: tuple[float, ...] = (0.0,) * 6  # "constant": τ_m += A sin(2π f t) [N·m]
+    sine_frequency_hz: float = 0.0  # "constant": f of that sine [Hz]
     feedback: str = "measured"
     rate_filter_hz: float = 0.0  # first-order low-pass on θ̇_J of eq. (14); 0 = none
     gains: str = ""
@@ -554,6 +556,8 @@ def _controller(w: str, key: str, v: Any) -> ControllerSpec:
         "motor_torques": lambda k, x: _vector(w, k, x, 6),
         "base_torque": lambda k, x: _number(w, k, x),
         "ramp_time": lambda k, x: _number(w, k, x, 0.0),
+        "sine_amplitude": lambda k, x: _vector(w, k, x, 6),
+        "sine_frequency_hz": lambda k, x: _number(w, k, x, 0.0),
         "feedback": lambda k, x: _choice(w, k, x, ("measured", "kinematic")),
         "rate_filter_hz": lambda k, x: _number(w, k, x, 0.0),
         "gains": lambda k, x: _text(w, k, x),
@@ -566,7 +570,7 @@ def _controller(w: str, key: str, v: Any) -> ControllerSpec:
     spec = ControllerSpec(**ctrl)
     kind = spec.kind
     if kind != "constant":
-        for k in ("motor_torques", "base_torque", "ramp_time"):
+        for k in ("motor_torques", "base_torque", "ramp_time", "sine_amplitude", "sine_frequency_hz"):
             if k in ctrl:
                 raise InputError(w, f"{key}.{k}", f"only for kind = \"constant\" (kind is {kind!r})")
     if kind != "programme":

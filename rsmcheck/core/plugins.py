@@ -56,8 +56,14 @@ REQUIRED = ("name", "label", "style", "simulates", "requires", "extra", "tables"
 #:   refined_options(case) -> dict       the constructor options of a finer run of `case`, with
 #:                                       `refinement`, what they refine ("rtol/10"): the run
 #:                                       `rsmcheck budget` measures its integration error against
+#:   finer_options(case) -> dict         the options of a run of `case` refined in space and time
+#:                                       (more modes or elements, and the finer step), with
+#:                                       `finer`, what they refine: `rsmcheck fuzz` takes the
+#:                                       change to that run as the engine's own discretisation
+#:                                       uncertainty
 #:   rigid_checks, aba_timing            a plug-in that checks (Pinocchio)
 CAPABILITIES = ("linear_plant", "coupled_frequencies", "link_frequencies", "rhs_timing", "refined_options",
+                "finer_options",
                 "rigid_checks", "aba_timing")
 
 
@@ -322,14 +328,24 @@ def refined_options(name: str, case: Case) -> dict[str, Any] | None:
     """Plug-in `name`'s constructor options of a finer run of `case` (the variant to run),
     from its optional `refined_options`; None when it declares none.  Options it does not
     accept (`engine_options`), or none at all, are an InputError naming the plug-in."""
+    return _options_of(name, case, "refined_options")
+
+
+def finer_options(name: str, case: Case) -> dict[str, Any] | None:
+    """Plug-in `name`'s constructor options of a run of `case` refined in space and in time
+    (its optional `finer_options`), as `refined_options`."""
+    return _options_of(name, case, "finer_options")
+
+
+def _options_of(name: str, case: Case, capability: str) -> dict[str, Any] | None:
     p = plugin(name)
-    make_finer = getattr(p, "refined_options", None)
+    make_finer = getattr(p, capability, None)
     if make_finer is None:
         return None
     options = dict(make_finer(case))
     unknown = sorted(set(options) - set(p.engine_options))
     if not options or unknown:
-        raise InputError(f"plug-in {name}", "refined_options",
+        raise InputError(f"plug-in {name}", capability,
                          f"options {', '.join(unknown)} are not among its engine_options" if unknown
                          else "gives no option: a finer run must differ")
     return options

@@ -495,23 +495,33 @@ class ComAlignment:
 
 @dataclass(frozen=True)
 class HeldTorques:
-    """Open-loop torques held from t = 0 (controller kind "constant"), brought in over
-    `ramp_time` T [s] by the smooth step f(t) = (1 − cos(πt/T))/2 (zero rate at both ends).
+    """Open-loop torques (controller kind "constant"): τ_m held from t = 0 and brought in
+    over `ramp_time` T [s] by the smooth step f(t) = (1 − cos(πt/T))/2 (zero rate at both
+    ends), plus a sine from t = 0, clipped to the motors' limits:
+
+        τ_m(t) = sat( f(t) τ_m,held + A sin(2π f_s t) ),   τ_B(t) = f(t) τ_B,held
 
     Why a ramp: the joints are all but undamped (Table 4: C_m = 0.002 N·m·s/rad on
-    K_m = 4e4 N·m/rad, B_m = 0.12 kg·m², ζ = 1.4e-5 at 92 Hz), so a step rings the rotor
-    mode at the full static load for the whole run; the ramp leaves a ringing of order
-    (π/ωT)² of it (1.2e-4 at T = 0.5 s, ω = 578 rad/s).
+    K_m = 4e4 N·m/rad, B_m = 0.12 kg·m²), so a step rings the rotor mode at the full static
+    load for the whole run; the ramp leaves a ringing of order (π/ωT)² of it (1.2e-4 at
+    T = 0.5 s, ω = 578 rad/s).
     """
 
     held: Inputs
     ramp_time: float = 0.0
+    sine_amplitude: np.ndarray | None = None  # A [N·m] per motor; None: no sine
+    sine_frequency_hz: float = 0.0
+    params: Params | None = None  # the limits the sum is clipped to (with a sine)
 
     def __call__(self, s: Sensors) -> Inputs:
         f = 1.0
         if s.time < self.ramp_time:
             f = 0.5 * (1.0 - math.cos(math.pi * s.time / self.ramp_time))
-        return Inputs(tau_m=f * self.held.tau_m, tau_B=f * self.held.tau_B, thrust=0.0)
+        out = Inputs(tau_m=f * self.held.tau_m, tau_B=f * self.held.tau_B, thrust=0.0)
+        if self.sine_amplitude is None:
+            return out
+        tau = out.tau_m + self.sine_amplitude * math.sin(2.0 * math.pi * self.sine_frequency_hz * s.time)
+        return saturate(Inputs(tau_m=tau, tau_B=out.tau_B, thrust=0.0), self.params)
 
 
 def make_controller(spec: ControllerSpec, params: Params, period: float = 1e-3):
@@ -520,7 +530,10 @@ def make_controller(spec: ControllerSpec, params: Params, period: float = 1e-3):
         return lambda s: Inputs()
     if spec.kind == "constant":
         held = saturate(Inputs(tau_m=np.array(spec.motor_torques, float), tau_B=spec.base_torque), params)
-        return HeldTorques(held, spec.ramp_time)
+        sine = np.array(spec.sine_amplitude, float)
+        if not np.any(sine) or spec.sine_frequency_hz == 0.0:
+            return HeldTorques(held, spec.ramp_time)
+        return HeldTorques(held, spec.ramp_time, sine, spec.sine_frequency_hz, params)
     if spec.kind == "programme":
         return ProgrammeController(spec, params, period)
     raise ValueError(f"unknown controller kind {spec.kind!r}")

@@ -208,6 +208,13 @@ BAD = [
                     'kind = "none"\nramp_time = 0.5'), "controller.ramp_time"),
     *((f"ramp_time_{name}", lambda t, v=value: edit(t, "base_torque = 0.0", f"base_torque = 0.0\nramp_time = {v}"),
        "controller.ramp_time") for name, value in (("negative", "-0.5"), ("text", '"slow"'), ("not_finite", "inf"))),
+    ("sine_without_torques",
+     lambda t: edit(t, 'kind = "constant"\nmotor_torques = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]\nbase_torque = 0.0',
+                    'kind = "none"\nsine_frequency_hz = 2.0'), "controller.sine_frequency_hz"),
+    ("sine_amplitude_of_five", lambda t: edit(t, "base_torque = 0.0", "base_torque = 0.0\nsine_amplitude = [1, 2, 3, 4, 5]"),
+     "controller.sine_amplitude"),
+    ("sine_frequency_negative", lambda t: edit(t, "base_torque = 0.0", "base_torque = 0.0\nsine_frequency_hz = -1.0"),
+     "controller.sine_frequency_hz"),
     ("toml_syntax", lambda t: t + "this is not toml\n", "toml"),
 ]
 

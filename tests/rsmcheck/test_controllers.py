@@ -115,6 +115,20 @@ def test_held_torques_step_and_ramp():
     assert ramp(sensors(t=0.6)).tau_m[0] == 10.0
 
 
+def test_held_torques_with_a_sine_are_clipped_to_the_motor_limits():
+    spec = ControllerSpec(kind="constant", motor_torques=(10.0, 0, 0, 0, 0, 70.0), base_torque=2.0, ramp_time=0.5,
+                          sine_amplitude=(4.0, 0, 0, 0, 0, 20.0), sine_frequency_hz=2.0)
+    ctrl = make_controller(spec, P)
+    # t = 1/8 s: the sine at its crest (2 Hz), the ramp at (1 − cos(π/4))/2
+    f = 0.5 * (1.0 - math.cos(math.pi * 0.125 / 0.5))
+    u = ctrl(sensors(t=0.125))
+    assert u.tau_m[0] == pytest.approx(10.0 * f + 4.0) and u.tau_B == pytest.approx(2.0 * f)
+    # t = 0.625 s: ramp done, sine at its crest again: 70 + 20 clipped to Table 4's 80 N·m
+    u = ctrl(sensors(t=0.625))
+    assert u.tau_m[0] == pytest.approx(14.0) and u.tau_m[5] == 80.0
+    assert ctrl(sensors(t=0.0)).tau_m.tolist() == [0.0] * 6  # sine and ramp both start at zero
+
+
 def test_quintic_is_rest_to_rest():
     assert quintic(0.0, 0.0, 10.0) == (0.0, 0.0, 0.0)
     assert quintic(10.0, 0.0, 10.0) == (1.0, 0.0, 0.0)
