@@ -288,10 +288,15 @@ def _progress(text: str) -> None:
     sys.stderr.flush()
 
 
+def _goldens(args: argparse.Namespace) -> Path:
+    """The goldens' folder: the hidden --goldens, else $RSMCHECK_GOLDENS_DIR, else goldens/."""
+    return Path(args.goldens) if args.goldens else gate.goldens_dir()
+
+
 def _cmd_gate(args: argparse.Namespace) -> int:
     cases = _gate_cases(args.case)
     if args.tolerances:
-        rows = gate.tolerance_table(cases, _engine_names(args.engine), Path(args.goldens))
+        rows = gate.tolerance_table(cases, _engine_names(args.engine), _goldens(args))
         if args.json:
             print(dumps_json({"tolerances": rows}))
             return 0
@@ -301,7 +306,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
             print(f"{r['case']:20s} {r['engine']:9s} {r['observable']:20s} {r['tolerance']:10.2e} "
                   f"{r['perturbation_change']:10.2e} {r['step_change']:10.2e} {r['largest_value']:10.2e}")
         return 0
-    results = gate.gate(cases, _engine_names(args.engine), Path(args.goldens), None if args.json else _progress)
+    results = gate.gate(cases, _engine_names(args.engine), _goldens(args), None if args.json else _progress)
     if args.json:
         print(dumps_json({"gate": [r.as_dict() for r in results]}))
     else:
@@ -329,12 +334,13 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 def _cmd_bless(args: argparse.Namespace) -> int:
     if not args.reason or not args.reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason: what changed and why the new results are right")
-    output_dir(args.goldens, "--goldens")
+    root = _goldens(args)
+    output_dir(str(root), "--goldens")
     cases = _gate_cases(args.case)
-    entries = gate.bless(cases, _engine_names(args.engine), args.reason, Path(args.goldens), _progress)
+    entries = gate.bless(cases, _engine_names(args.engine), args.reason, root, _progress)
     for case, engine, what in entries:
         print(f"{case} / {engine}: " + "; ".join(what))
-    print(f"wrote {len(entries)} golden(s) and an entry in {Path(args.goldens) / gate.CHANGELOG}")
+    print(f"wrote {len(entries)} golden(s) and an entry in {root / gate.CHANGELOG}")
     return 0
 
 
@@ -439,12 +445,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="one JSON object {\"gate\": [...]} on stdout")
     p.add_argument("--tolerances", action="store_true",
                    help="print the goldens' gate tolerances and what they were measured from; run nothing")
-    p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
+    p.add_argument("--goldens", default=None, help=argparse.SUPPRESS)
     p = sub.add_parser("bless", help="re-run cases and rewrite their goldens (with --reason, into the changelog)")
     p.add_argument("case", nargs="+", help="case names, or 'all'")
     p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
     p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
-    p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
+    p.add_argument("--goldens", default=None, help=argparse.SUPPRESS)
     sub.add_parser("bench", help="speed of each engine on the same work [--json] [--full]", add_help=False)
     sub.add_parser("engines", help="the registered engine plug-ins, what they offer, whether they are installed")
     for p_name, text in _plugin_commands().items():
