@@ -22,6 +22,7 @@ import json
 import math
 import re
 import sys
+import textwrap
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -54,6 +55,11 @@ def _g(x: float, digits: int = 3) -> str:
     if abs(x) >= 1000:
         return f"{x:,.0f}".replace(",", " ")
     return f"{x:.{digits}g}"
+
+
+def _para(text: str) -> list[str]:
+    """A sentence of prose as lines of at most 98 characters."""
+    return textwrap.wrap(text, 98, break_long_words=False, break_on_hyphens=False)
 
 
 def _row(*cells: Any) -> str:
@@ -95,7 +101,7 @@ def targets_lines(doc: dict[str, Any]) -> list[str]:
 def speed(data: Path = DATA) -> str:
     """README: the speed targets read off the stored bench (docs/data/bench_all.json)."""
     doc = _read(data, "bench_all.json")
-    lines = [f"Measured by `{_command(doc)}` on {_machine(doc)} (docs/data/bench_all.json):", ""]
+    lines = _para(f"Measured by `{_command(doc)}` on {_machine(doc)} (docs/data/bench_all.json):") + [""]
     return "\n".join(lines + targets_lines(doc)) + "\n"
 
 
@@ -117,7 +123,7 @@ def bench_runs(data: Path = DATA) -> str:
     """docs/benchmarks.md: every run of the stored bench, wall seconds (× real time)."""
     doc = _read(data, "bench_all.json")
     engines = list(doc.get("engines", []))
-    lines = [f"docs/data/bench_all.json, on {_machine(doc)}; wall s (× real time) per engine.", ""]
+    lines = _para(f"docs/data/bench_all.json, on {_machine(doc)}; wall s (× real time) per engine.") + [""]
     for variant in ("full", "short"):
         runs = _runs_by_case(doc, variant)
         order = (["mission"] if "mission" in runs else []) + sorted(c for c in runs if c != "mission")
@@ -128,8 +134,8 @@ def bench_runs(data: Path = DATA) -> str:
         lines += _table(("case", "sim s", *(f"{e} wall s" for e in engines)), rows) + [""]
     lines += _phases_lines(doc) + [""] + _sample_lines(doc)
     rhs = doc.get("rhs_us") or {}
-    lines += ["", "One right-hand side, µs per call: " + ", ".join(
-        f"{k} {_g(v)}" for k, v in rhs.items() if isinstance(v, float)) + "."]
+    lines += [""] + _para("One right-hand side, µs per call: " + ", ".join(
+        f"{k} {_g(v)}" for k, v in rhs.items() if isinstance(v, float)) + ".")
     return "\n".join(lines) + "\n"
 
 
@@ -179,7 +185,7 @@ def bench_present(data: Path = DATA) -> str:
     """docs/benchmarks.md: the reference's full mission on the present model
     (docs/data/bench_reference_mission.json): its targets and phases."""
     doc = _read(data, "bench_reference_mission.json")
-    lines = [f"docs/data/bench_reference_mission.json, on {_machine(doc)}:", ""]
+    lines = _para(f"docs/data/bench_reference_mission.json, on {_machine(doc)}:") + [""]
     return "\n".join(lines + targets_lines(doc) + [""] + _phases_lines(doc) + [""] + _sample_lines(doc)) + "\n"
 
 
@@ -194,9 +200,9 @@ def check_short(data: Path = DATA) -> str:
     low = min(finite, key=lambda c: float(c["margin"]))
     high = max(finite, key=lambda c: float(c["margin"]))
     passed = sum(bool(c["pass"]) for c in checks)
-    tail = [f"{passed} of {len(checks)} pass; margins {float(low['margin']):.3g} ({low['case']} {low['observable']}) "
+    tail = _para(f"{passed} of {len(checks)} pass; margins {float(low['margin']):.3g} ({low['case']} {low['observable']}) "
             f"to {float(high['margin']):.3g} ({high['case']} {high['observable']}).  Not compared: "
-            + "; ".join(f"{s['case']} ({s['reason']})" for s in doc.get("skipped", [])) + "."]
+            + "; ".join(f"{s['case']} ({s['reason']})" for s in doc.get("skipped", [])) + ".")
     head = ("case", "observable", "metric", "error", "tolerance", "margin", "result")
     return "\n".join(_table(head, rows) + [""] + tail) + "\n"
 
@@ -237,7 +243,7 @@ def departure_table() -> str:
 
 
 def observables() -> str:
-    """docs/physics.md §11: rsmcheck.core.observables.OBSERVABLES."""
+    """docs/observables.md: rsmcheck.core.observables.OBSERVABLES."""
     rows = [(f"`{s.name}`", "–" if s.shape == () else " × ".join(map(str, s.shape)), s.unit, s.meaning)
             for s in OBSERVABLES]
     return "\n".join(_table(("name", "shape", "unit", "meaning"), rows)) + "\n"
@@ -253,8 +259,8 @@ def faults(data: Path = DATA) -> str:
         analytic = f"{len(f['analytic'])}" if f.get("analytic") else "—"
         rows.append((f"`{f['name']}`", f["layer"], f["what"], caught, first, analytic))
     head = ("fault", "layer", "what it changes", "caught by", "first cross-check row that fails", "analytic tests failed")
-    lines = [f"docs/data/faults.json: {len(doc['faults'])} changes; cross-checked cases: "
-             + ", ".join(doc["cases"]) + f"; Pinocchio at {doc['rigid_states']} states.", ""]
+    lines = _para(f"docs/data/faults.json: {len(doc['faults'])} changes; cross-checked cases: "
+                  + ", ".join(doc["cases"]) + f"; Pinocchio at {doc['rigid_states']} states.") + [""]
     return "\n".join(lines + _table(head, rows)) + "\n"
 
 

@@ -1,6 +1,6 @@
 """The observable schema against a hand-written oracle, and what check_observables rejects.
 
-The table of docs/physics.md §11 is a generated block rendered from the schema
+The table of docs/observables.md is a generated block rendered from the schema
 (rsmcheck.orchestration.doc_tables; tests/docs/test_doc_tables.py checks the page)."""
 
 from __future__ import annotations
