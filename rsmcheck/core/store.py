@@ -258,7 +258,7 @@ def _memory_gib() -> float | None:
 
 def machine() -> dict[str, Any]:
     """The machine a speed measurement ran on (`rsmcheck bench`): wall times of the same
-    code differ between two machines of one kind by tens of per cent (benchmarks/README.md),
+    code differ between two machines of one kind by tens of per cent (docs/benchmarks.md),
     so a stored figure names its CPU model, logical CPUs, memory [GiB], operating system,
     Python and the numerical packages the engines run on."""
     cpu, mhz = _cpu()
