@@ -1,4 +1,4 @@
-"""The `rsmcheck` command line (README, section "Command line").
+"""The `rsmcheck` command line (docs/commands.md).
 
 Exit codes: 0 all good, 1 a check failed, 2 bad input or usage (one line on stderr, no
 traceback; output paths are checked before anything runs).  A diverging simulation is
