@@ -50,8 +50,8 @@ from rsmcheck.core.cases import list_cases, load_case
 from rsmcheck.core.plugins import plugins, step_perturbed_settings
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES
-from rsmcheck.orchestration.runs import (Job, expected_wall, get_runs, golden_path, goldens_dir,
-                                         run_engine, run_jobs)
+from rsmcheck.orchestration.runs import (GOLDEN_DIR, Job, expected_wall, get_runs, golden_path,  # noqa: F401
+                                         goldens_dir, run_engine, run_jobs)  # GOLDEN_DIR: re-exported
 from rsmcheck.core.params import Params
 from rsmcheck.core.store import EngineRun, git_commit, read_run, write_run, write_text
 
