@@ -32,8 +32,8 @@ test: venv
 study: venv
 	$(VPY) -m pytest -m study $(PYTEST_ARGS)
 
-# Fault injection (docs/gate.md): ~17 plausible bugs, each in a copy of the tree; which
-# checks catch which.  Not in CI (≈ 20 min on 2 cores); writes docs/data/faults.json.
+# Fault injection (docs/gate.md): plausible bugs, each in a copy of the tree; which
+# checks catch which.  Not in CI (tens of minutes); writes docs/data/faults.json.
 faults: venv
 	$(VPY) -m rsmcheck.orchestration.faults
 
@@ -44,7 +44,7 @@ report: venv
 	$(VENV)/bin/rsmcheck report --short --out out/report.html
 
 # The slow tier, not in CI: every case and the whole mission (p1 → p5, chained) at full
-# length in both engines, compared with the cases' tolerances.  80–82 min on 2 cores (2026-11-26).
+# length in both engines, compared with the cases' tolerances (over an hour on 2 cores).
 fullcheck: venv
 	$(VENV)/bin/rsmcheck report --out out/full/report.html
 

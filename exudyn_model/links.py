@@ -170,8 +170,8 @@ def material(link: LinkParams, axial_damping: float = 1.0) -> dict[str, float]:
 
     `axial_damping` scales the axial Kelvin–Voigt term η·EA (1: the same material law as
     in bending).  The axially rigid reference has neither the axial compliance nor this
-    dissipation, P = η Ṅ² L / EA per link, which vanishes only as EA → ∞; at EA = 1e4·EI it
-    is enough to damp the marginally unstable rotor mode of p1_rigid_gains (docs/exudyn.md §8).
+    dissipation, P = η Ṅ² L / EA per link, which vanishes only as EA → ∞; it damps the rotor
+    modes a little too (docs/exudyn.md §5 item 6).
     """
     ei = link.ei
     ea = link.axial_to_bending * ei

@@ -1,5 +1,5 @@
 """What the Exudyn model reports: the sensors of the shared driver (rsmcheck.core.engine.Sensors)
-and every observable (docs/physics.md §11) with energy and momentum, read from the ODE2
+and every observable (docs/observables.md) with energy and momentum, read from the ODE2
 coordinates by the index tables of `exudyn_model.build`, and the grasp forces by the
 index-1 solve of `exudyn_model.reactions`.  The reference's mirror is
 `reference_model/observe.py`.
@@ -131,7 +131,7 @@ class Observer:
             orbit_v_I=state.v_O.copy())
 
     def observables(self, inputs: Inputs) -> dict:
-        """Every observable (docs/physics.md §11) at the current sample, `inputs` held from it."""
+        """Every observable (docs/observables.md) at the current sample, `inputs` held from it."""
         model, state = self.model, self.state
         p, ix = model.params, model.index
         q, v = coordinates(model, state)

@@ -23,7 +23,7 @@ to zero and the rigid block is compared (mass matrix, bias forces, point kinemat
 momentum).  Constrained accelerations are then not comparable — the elastic coordinates
 are coupled inertially to the rigid ones — and are left out.
 
-`main(argv)` is ``rsmcheck pinocchio [--json]`` (README, command line): a table, or one JSON object
+`main(argv)` is ``rsmcheck pinocchio [--json]`` (docs/commands.md): a table, or one JSON object
 ``{"checks": [...]}``; exit 0 when every check passes, 1 otherwise.  It runs the open
 chain held by arm 1 and by arm 2 and the closed chain, for rigid links (n_modes = 0) and
 for the 2-mode reference (rigid block), so a (quantity, chain) pair occurs in several

@@ -30,7 +30,7 @@ X_S = W⁻¹ r_S, X = r + hγ L X_S.  The error estimate is filtered by (I − h
 same way (Shampine's device, as in `trbdf2.py`).  Eight right-hand sides per step (no
 FSAL) against DP5's six.
 
-What it buys (benchmarks/README.md, "An L-stable integrator at equal accuracy"): one
+What it buys (docs/records.md, "An L-stable integrator at equal accuracy"): one
 step per 1 ms sample in the quiet phases at the cases' rtol, but its own error, then
 controlled by rtol instead of hidden under a stability-bound step, is ten times DP5's
 (p1_transport short: end effector 1.3e-7 against 1.3e-8 m from a 1e-10 solution); at

@@ -1,4 +1,4 @@
-"""Sensors and observables (docs/physics.md §11) from a reference-model state: energy,
+"""Sensors and observables (docs/observables.md) from a reference-model state: energy,
 momentum, the system COM, the wrist angles.
 
 All positions are relative to the co-moving reference point O, inertial axes, unless the
@@ -112,7 +112,7 @@ def sensors(model: ReferenceModel, t: float, x: np.ndarray, cfg: Configuration) 
 
 def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: Configuration,
                 capture_arm: int, capture_point_T: np.ndarray) -> dict[str, np.ndarray | float]:
-    """Every observable (docs/physics.md §11) at one instant.
+    """Every observable (docs/observables.md) at one instant.
 
     capture_arm / capture_point_T: the arm whose gap `capture_gap_B` reports and its
     designated capture point (target frame, about the target COM).

@@ -1,1 +1,1 @@
-"""The HTML report: renders what rsmcheck.orchestration.collect stored (README, "The report")."""
+"""The HTML report: renders what rsmcheck.orchestration.collect stored (docs/commands.md, "The report")."""

@@ -43,7 +43,7 @@ from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.bench_diff import work
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.orchestration.compare import metric_label
-from rsmcheck.orchestration.gate import GOLDEN_DIR, golden_path, read_golden
+from rsmcheck.orchestration.gate import golden_path, goldens_dir, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
 from rsmcheck.report.plots import colour, comparison_figure, run_marks, simple_figure
@@ -344,7 +344,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     gates: dict[str, list] = {}
     for g in v.get("gate", []):
         gates.setdefault(g["case"], []).append(g)
-    goldens = GOLDEN_DIR.is_dir()
+    goldens = goldens_dir().is_dir()
     rows = verdict_rows(v, goldens)
     missing_goldens = 0 if goldens else sum(no_golden(g) for g in v.get("gate", []))
     missions = mission_sections(page, st, checks)

@@ -1,4 +1,4 @@
-"""The `rsmcheck` command line (README, section "Command line").
+"""The `rsmcheck` command line (docs/commands.md).
 
 Exit codes: 0 all good, 1 a check failed, 2 bad input or usage (one line on stderr, no
 traceback; output paths are checked before anything runs).  A diverging simulation is
@@ -315,10 +315,15 @@ def _progress(text: str) -> None:
     sys.stderr.flush()
 
 
+def _goldens(args: argparse.Namespace) -> Path:
+    """The goldens' folder: the hidden --goldens, else $RSMCHECK_GOLDENS_DIR, else goldens/."""
+    return Path(args.goldens) if args.goldens else gate.goldens_dir()
+
+
 def _cmd_gate(args: argparse.Namespace) -> int:
     cases = _gate_cases(args.case)
     if args.tolerances:
-        rows = gate.tolerance_table(cases, _engine_names(args.engine), Path(args.goldens))
+        rows = gate.tolerance_table(cases, _engine_names(args.engine), _goldens(args))
         if args.json:
             print(dumps_json({"tolerances": rows}))
             return 0
@@ -328,7 +333,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
             print(f"{r['case']:20s} {r['engine']:9s} {r['observable']:20s} {r['tolerance']:10.2e} "
                   f"{r['perturbation_change']:10.2e} {r['step_change']:10.2e} {r['largest_value']:10.2e}")
         return 0
-    results = gate.gate(cases, _engine_names(args.engine), Path(args.goldens), None if args.json else _progress)
+    results = gate.gate(cases, _engine_names(args.engine), _goldens(args), None if args.json else _progress)
     if args.json:
         print(dumps_json({"gate": [r.as_dict() for r in results]}))
     else:
@@ -356,12 +361,13 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 def _cmd_bless(args: argparse.Namespace) -> int:
     if not args.reason or not args.reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason: what changed and why the new results are right")
-    output_dir(args.goldens, "--goldens")
+    root = _goldens(args)
+    output_dir(str(root), "--goldens")
     cases = _gate_cases(args.case)
-    entries = gate.bless(cases, _engine_names(args.engine), args.reason, Path(args.goldens), _progress)
+    entries = gate.bless(cases, _engine_names(args.engine), args.reason, root, _progress)
     for case, engine, what in entries:
         print(f"{case} / {engine}: " + "; ".join(what))
-    print(f"wrote {len(entries)} golden(s) and an entry in {Path(args.goldens) / gate.CHANGELOG}")
+    print(f"wrote {len(entries)} golden(s) and an entry in {root / gate.CHANGELOG}")
     return 0
 
 
@@ -467,12 +473,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="one JSON object {\"gate\": [...]} on stdout")
     p.add_argument("--tolerances", action="store_true",
                    help="print the goldens' gate tolerances and what they were measured from; run nothing")
-    p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
+    p.add_argument("--goldens", default=None, help=argparse.SUPPRESS)
     p = sub.add_parser("bless", help="re-run cases and rewrite their goldens (with --reason, into the changelog)")
     p.add_argument("case", nargs="+", help="case names, or 'all'")
     p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
     p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
-    p.add_argument("--goldens", default=str(gate.GOLDEN_DIR), help=argparse.SUPPRESS)
+    p.add_argument("--goldens", default=None, help=argparse.SUPPRESS)
     p = sub.add_parser("fuzz", help="randomized cross-check: N drawn scenarios, both engines at two resolutions")
     p.add_argument("--n", type=_whole(1), default=10, help="number of scenarios (default 10)")
     p.add_argument("--seed", type=_whole(0), default=0, help="the campaign's seed (default 0): scenario i of seed S "

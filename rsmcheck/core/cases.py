@@ -598,7 +598,7 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
     for obs, item in v.items():
         k = f"{key}.{obs}"
         if obs not in OBSERVABLE_NAMES or obs == "time":
-            raise InputError(w, k, "not an observable (docs/physics.md §11, rsmcheck.core.observables)")
+            raise InputError(w, k, "not an observable (docs/observables.md, rsmcheck.core.observables)")
         c = _table(w, k, item, {
             "tolerance": lambda kk, x: _number(w, kk, x, 0.0, lo_open=True),
             "why": lambda kk, x: _text(w, kk, x),

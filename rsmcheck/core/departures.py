@@ -3,12 +3,11 @@
 One row per departure, with the columns of docs/physics.md §9: the paper (section /
 equation), what the suite does, why, and the measured size of the difference.  The file
 is the one source: the report reads it (shipped in the package), and the table of
-docs/physics.md §9 is generated from it,
+docs/physics.md §9 is a generated block rendered from it
+(`python -m rsmcheck.orchestration.doc_tables` rewrites it, tests/docs/test_doc_tables.py
+checks it);
 
     python -m rsmcheck.core.departures --markdown      # print the table
-    python -m rsmcheck.core.departures --write FILE    # replace the table in FILE
-
-(tests/rsmcheck/test_departures.py checks that docs/physics.md shows this rendering).
 """
 
 from __future__ import annotations
@@ -17,7 +16,6 @@ import argparse
 import sys
 import tomllib
 from importlib import resources
-from pathlib import Path
 from typing import Sequence
 
 from rsmcheck.core.errors import InputError
@@ -26,8 +24,6 @@ from rsmcheck.core.errors import InputError
 DATA = "departures.toml"
 #: the keys of a row, in the order of the table's columns
 KEYS = ("paper", "suite", "why", "size")
-#: the comment line above the generated table in a Markdown document
-MARKER = "<!-- generated from rsmcheck/core/departures.toml: python -m rsmcheck.core.departures --write docs/physics.md -->"
 
 
 def table() -> tuple[list[str], list[list[str]]]:
@@ -46,50 +42,18 @@ def table() -> tuple[list[str], list[list[str]]]:
 
 
 def markdown() -> str:
-    """The table as Markdown, one line per row, with the marker comment above it."""
+    """The table as Markdown, one line per row."""
     head, rows = table()
-    lines = [MARKER, "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in rows]
     return "\n".join(lines) + "\n"
 
 
-def table_in(text: str) -> str:
-    """The generated table of a document: the marker line and the table lines after it
-    ('' when the document has no marker)."""
-    lines = text.splitlines(keepends=True)
-    start = next((i for i, line in enumerate(lines) if line.rstrip("\n") == MARKER), None)
-    if start is None:
-        return ""
-    end = start + 1
-    while end < len(lines) and lines[end].startswith("|"):
-        end += 1
-    return "".join(lines[start:end])
-
-
-def replace_table(text: str) -> str:
-    """`text` with its generated table (`table_in`) replaced by `markdown()`."""
-    old = table_in(text)
-    if not old:
-        raise InputError("document", "departures", f"no line '{MARKER}' to put the table after")
-    return text.replace(old, markdown(), 1)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m rsmcheck.core.departures", description=__doc__.split("\n")[0])
-    group = parser.add_mutually_exclusive_group(required=True)
-    group.add_argument("--markdown", action="store_true", help="print the table as Markdown")
-    group.add_argument("--write", metavar="FILE", help="replace the generated table in FILE (docs/physics.md)")
-    args = parser.parse_args(argv)
-    if args.markdown:
-        sys.stdout.write(markdown())
-        return 0
-    path = Path(args.write)
-    try:
-        path.write_text(replace_table(path.read_text(encoding="utf-8")), encoding="utf-8")
-    except InputError as exc:
-        sys.stderr.write(f"{parser.prog}: {path}: {exc.reason}\n")
-        return 2
-    print(f"wrote the departures table into {path}")
+    parser.add_argument("--markdown", action="store_true", required=True, help="print the table as Markdown")
+    parser.parse_args(argv)
+    sys.stdout.write(markdown())
     return 0
 
 

@@ -85,7 +85,7 @@ class Engine(Protocol):
     def sensors(self) -> Sensors: ...
 
     def observe(self, inputs: Inputs) -> dict[str, np.ndarray | float]:
-        """Every observable (docs/physics.md §11) at the current instant."""
+        """Every observable (docs/observables.md) at the current instant."""
         ...
 
     def advance(self, t_next: float, inputs: Inputs) -> None:

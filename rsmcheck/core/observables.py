@@ -1,12 +1,12 @@
-"""The observable schema (docs/physics.md §11): what every engine writes, as data.
+"""The observable schema (docs/observables.md): what every engine writes, as data.
 
-Each observable is one row of the table in docs/physics.md §11 (generated from this
+Each observable is one row of the table in docs/observables.md (generated from this
 module and tested against it): a name, the shape of one time sample, its unit and what it
 means.  An engine's result is a mapping name -> array whose first axis is the time sample;
 `check_observables` is the one place that decides whether such a mapping is complete and
 well formed (it is used by the HDF5 store before writing and after reading).
 
-Conventions (docs/physics.md §11): SI units, radians.  Suffix `_B`: expressed in the base
+Conventions (docs/observables.md): SI units, radians.  Suffix `_B`: expressed in the base
 body frame, relative to the base COM.  Suffix `_I`: inertial axes (positions relative to
 the co-moving reference point).  Arm 1 comes before arm 2, and within an arm the joints
 and links go from the base outward.
@@ -22,7 +22,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ObservableSpec:
-    """One row of the observables table (docs/physics.md §11).  `shape` is the shape of one
+    """One row of the observables table (docs/observables.md).  `shape` is the shape of one
     time sample (() for a scalar)."""
 
     name: str
@@ -114,7 +114,7 @@ NAMES: tuple[str, ...] = tuple(spec.name for spec in OBSERVABLES)
 
 
 def check_observables(data: Mapping[str, np.ndarray], where: str) -> int:
-    """Check that `data` holds exactly the observables of docs/physics.md §11, well formed.
+    """Check that `data` holds exactly the observables of docs/observables.md, well formed.
 
     Every name of `OBSERVABLES` must be present and no other; each array is numeric with
     shape (n, *spec.shape) for one common number of samples n >= 1; every value is
@@ -129,7 +129,7 @@ def check_observables(data: Mapping[str, np.ndarray], where: str) -> int:
 
     unknown = sorted(set(data) - set(BY_NAME))
     if unknown:
-        raise fail(unknown[0], f"unknown name (docs/physics.md §11 has no such observable; "
+        raise fail(unknown[0], f"unknown name (docs/observables.md has no such observable; "
                                f"{len(unknown)} unknown: {', '.join(unknown)})")
     missing = [name for name in NAMES if name not in data]
     if missing:

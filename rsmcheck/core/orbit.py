@@ -1,6 +1,6 @@
-"""Orbit mechanics of the transfer phase (Sect. 4.1, 5.3; docs/cases.md §3.4): Hohmann numbers, the
-finite-burn schedule, and an orbit-only propagation (reference point + mass depletion, no
-robot) that the p4_hohmann case and its tests are checked against.
+"""Orbit mechanics of the transfer phase (Sect. 4.1, 5.3; docs/controllers.md, "Burns"):
+Hohmann numbers, the finite-burn schedule, and an orbit-only propagation (reference point +
+mass depletion, no robot) that the p4_hohmann case and its tests are checked against.
 
 The robot's thrust acts along +x_B through the base COM; the base attitude tracks the
 retrograde direction (−v̂ of the orbit, eq. 13), so the orbit-only model thrusts along −v̂

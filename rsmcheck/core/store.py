@@ -1,7 +1,7 @@
-"""HDF5 run files (docs/physics.md §11, "Run files").
+"""HDF5 run files (docs/observables.md, "Run files").
 
 A run file holds one group per engine (`/reference`, `/exudyn`).  Each group has one
-dataset per observable of docs/physics.md §11 (first axis = time sample, `time` included), the
+dataset per observable of docs/observables.md (first axis = time sample, `time` included), the
 events (`events/time`, `events/kind`, `events/detail`), the phase boundaries
 (`phases/name`, `phases/t_start`, `phases/t_end`) and, as attributes, the engine name,
 its package versions (`version.<package>`) and its solver settings (`solver.<key>`).
@@ -258,7 +258,7 @@ def _memory_gib() -> float | None:
 
 def machine() -> dict[str, Any]:
     """The machine a speed measurement ran on (`rsmcheck bench`): wall times of the same
-    code differ between two machines of one kind by tens of per cent (benchmarks/README.md),
+    code differ between two machines of one kind by tens of per cent (docs/benchmarks.md),
     so a stored figure names its CPU model, logical CPUs, memory [GiB], operating system,
     Python and the numerical packages the engines run on."""
     cpu, mhz = _cpu()

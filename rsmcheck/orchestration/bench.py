@@ -42,8 +42,8 @@ on the same kind of machine.
 `machine` (`rsmcheck.core.store.machine`, the table's first line): the CPU model with its family,
 model and clock, logical CPUs, memory, operating system, Python and the numerical packages.
 Two machines of the project's 2-core kind, both calling their CPU "AMD EPYC", ran the same
-code's full mission 28 % (reference) and 42 % (Exudyn) apart, and the compiled RHS timing did
-not show it (2 %; benchmarks/README.md, "Recorded runs"): figures from two documents compare only when their machines do
+code's full mission tens of per cent apart, and the compiled RHS timing did not show it
+(docs/records.md): figures from two documents compare only when their machines do
 (`rsmcheck.core.store.same_machine`), and a recorded machine can tell two machines apart, not
 prove them alike (a shared host's load is not in the record).  Each run also records the
 machine it ran on (`machine` of the run, evaluated on the Dask worker that ran it): the

@@ -5,10 +5,10 @@ Wall times belong to the machine; the work does not.  Each run of a bench docume
 the counts behind its time (`bench.SOLVER_KEYS`): the reference's accepted and rejected
 steps (each a Dormand–Prince step of six right-hand sides, or an IMEX step of eight in the
 quiet segments, `quiet_steps`), Exudyn's Newton iterations, Jacobians and retries at its
-fixed step.  The same code on two machines of the project's 2-core kind (the full benches of
-8116426 and 82dd8b1, benchmarks/README.md, "The work, comparable across machines") moved every wall
-time by 9–56 % and these counts by at most 0.31 % (the reference, whose step-size control
-sees the last bits of the arithmetic) and 0.023 % (Exudyn).  So:
+fixed step.  The same code on two machines of the project's 2-core kind moved every wall time
+by tens of per cent and these counts by a fraction of a per cent at most (the reference's
+step-size control sees the last bits of the arithmetic; docs/records.md, "The work,
+comparable across machines").  So:
 
 * a run's *work* is one number per engine (`work`): the reference's step attempts
   (accepted + rejected), Exudyn's Newton iterations;
@@ -18,8 +18,8 @@ sees the last bits of the arithmetic) and 0.023 % (Exudyn).  So:
 * wall times are compared only when both runs ran on the same kind of machine
   (`rsmcheck.core.store.same_machine`; a run's own `machine`, or its document's for a
   document older than the record per run); otherwise the ratio is left out, not printed
-  with a warning.  Even then two documents are two runs, minutes or days apart: benchmarks/README.md
-  measured ±6 % between alternated runs and tens of per cent between sessions.
+  with a warning.  Even then two documents are two runs, minutes or days apart, and wall
+  times scatter between sessions (docs/benchmarks.md).
 
 The comparison reports; it does not gate (exit codes stay `rsmcheck bench`'s own): more work
 is often the point of a change, and the figure to look at is the ratio it prints.

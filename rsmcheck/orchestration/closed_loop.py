@@ -1,5 +1,5 @@
 """The sampled closed loop of a programme case, linearised: growth rates of its modes in
-both engines (p1_rigid_gains: docs/cases.md §3.2, §5; docs/exudyn.md §10).
+both engines (p1_rigid_gains: docs/controllers.md, docs/records.md).
 
 Each engine supplies its own continuous plant at rest in the case's initial configuration
 (orbit off): ẋ = A x + B u, y = C x (`modes.linear_plant` of each engine package, the same

@@ -16,7 +16,7 @@ tolerance *in the observable's unit* (SI, radians), a `why` sentence and a metri
               e^{σt}, so differences of the signal itself say nothing (docs/cases.md)
 
 `max_abs` and `rms` may take a `window` too: then only the samples t0 ≤ t ≤ t1 count, for
-an interval the case's why says the engines can be held to (docs/cases.md §5: a swing
+an interval the case's why says the engines can be held to (docs/records.md, p1_transport at full length: a swing
 whose stiff stop contacts the two engines reach at instants a fraction of a second apart).
 
 (a: the other engine, b: the reference; c runs over the components of the observable).

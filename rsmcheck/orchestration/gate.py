@@ -50,7 +50,8 @@ from rsmcheck.core.cases import list_cases, load_case
 from rsmcheck.core.plugins import plugins, step_perturbed_settings
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES
-from rsmcheck.orchestration.runs import GOLDEN_DIR, Job, expected_wall, get_runs, golden_path, run_engine, run_jobs
+from rsmcheck.orchestration.runs import (GOLDEN_DIR, Job, expected_wall, get_runs, golden_path,  # noqa: F401
+                                         goldens_dir, run_engine, run_jobs)  # GOLDEN_DIR: re-exported
 from rsmcheck.core.params import Params
 from rsmcheck.core.store import EngineRun, git_commit, read_run, write_run, write_text
 
@@ -467,7 +468,7 @@ def gated_cases() -> list:
     return [c for c in (load_case(p) for p in list_cases()) if not c.phases and c.variant(True).has_initial]
 
 
-def gate(cases: list, engines: list[str], root: Path = GOLDEN_DIR, progress=None) -> list[GateResult]:
+def gate(cases: list, engines: list[str], root: Path | None = None, progress=None) -> list[GateResult]:
     """Run the short variant of every case in every engine (fresh runs, nothing stored:
     `runs.get_runs` without a folder) and compare with its golden.  Every golden is read
     (and a bad one reported, InputError) before anything runs."""
@@ -479,10 +480,11 @@ def gate(cases: list, engines: list[str], root: Path = GOLDEN_DIR, progress=None
     return [compare_with_golden(v, got.runs[v.name][e], goldens[(v.name, e)]) for v in variants for e in engines]
 
 
-def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR, progress=None) -> list[tuple[str, str, list[str]]]:
+def bless(cases: list, engines: list[str], reason: str, root: Path | None = None, progress=None) -> list[tuple[str, str, list[str]]]:
     """Re-run and rewrite the goldens of `cases` (the nominal, the mass-perturbed and the
     step-perturbed run of each engine; the gate tolerances measured from them) and prepend
-    what moved to the changelog."""
+    what moved to the changelog (in `root`, else in `goldens_dir()`)."""
+    root = goldens_dir() if root is None else Path(root)
     if not reason or not reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason (what changed and why the new results are right)")
     variants = [c.variant(True) for c in cases]
@@ -513,7 +515,7 @@ def bless(cases: list, engines: list[str], reason: str, root: Path = GOLDEN_DIR,
     return entries
 
 
-def tolerance_table(cases: list, engines: list[str], root: Path = GOLDEN_DIR) -> list[dict[str, Any]]:
+def tolerance_table(cases: list, engines: list[str], root: Path | None = None) -> list[dict[str, Any]]:
     """Per (case, engine, observable): the gate tolerance, the changes the mass and the step
     perturbation caused (the latter NaN for a golden blessed without that run) and the
     observable's largest magnitude, as stored in the goldens."""

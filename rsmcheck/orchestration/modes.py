@@ -79,5 +79,5 @@ def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n:
 
 
 def modes_report(options: Mapping[str, Mapping[str, Any]] | None = None) -> dict[str, Any]:
-    """The JSON object of `rsmcheck modes --json` (README, command line)."""
+    """The JSON object of `rsmcheck modes --json` (docs/commands.md)."""
     return {"links": link_rows(options=options), "arms": arm_rows(options=options)}

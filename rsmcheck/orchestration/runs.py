@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import json
+import os
 import pickle
 import tempfile
 import time
@@ -44,6 +45,8 @@ from rsmcheck.core.store import EngineRun, read_run, write_run
 ROOT = Path(__file__).resolve().parents[2]
 #: the gate's golden runs (rsmcheck.orchestration.gate), one file per case and engine
 GOLDEN_DIR = ROOT / "goldens"
+#: environment variable naming another folder of goldens (`goldens_dir`)
+GOLDENS_ENV = "RSMCHECK_GOLDENS_DIR"
 #: the package whose sources make a run what it is, besides each plug-in's own package
 SOURCE_PACKAGES = ("rsmcheck",)
 #: modules of rsmcheck that orchestrate, compare or report: no run depends on them (the
@@ -80,9 +83,16 @@ def _package_folder(package: str) -> Path:
     return Path(next(iter(spec.submodule_search_locations)))
 
 
-def golden_path(case_name: str, engine: str, root: Path = GOLDEN_DIR) -> Path:
-    """Where the gate keeps the golden run of `case_name` in `engine`."""
-    return Path(root) / f"{case_name}.{engine}.h5"
+def goldens_dir() -> Path:
+    """The folder of the goldens: $RSMCHECK_GOLDENS_DIR where it is set (a user's own
+    cases, a test's temporary folder), else goldens/ beside the rsmcheck package."""
+    return Path(os.environ.get(GOLDENS_ENV) or GOLDEN_DIR)
+
+
+def golden_path(case_name: str, engine: str, root: Path | None = None) -> Path:
+    """Where the gate keeps the golden run of `case_name` in `engine` (in `root`, else in
+    `goldens_dir()`)."""
+    return Path(goldens_dir() if root is None else root) / f"{case_name}.{engine}.h5"
 
 
 def expected_wall(case: Case, engine: str) -> float:

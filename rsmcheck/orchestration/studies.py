@@ -16,7 +16,7 @@
   rtol) of a grid on a case's short variant against a Dormand–Prince solution at rtol
   1e-10, the error of every row of the case's `[compare]` table beside the wall time and
   the steps per control sample — what an integrator buys is judged at equal accuracy
-  (benchmarks/README.md, "An L-stable integrator at equal accuracy").
+  (docs/records.md, "An L-stable integrator at equal accuracy").
 * `orbit_study`: what flying in orbit changes in a mission phase: the phase's short
   variant with and without its `[orbit]` (reference engine; without it the base holds its
   attitude instead of tracking the retrograde direction), the largest difference of each

@@ -237,7 +237,7 @@ def test_thrust_burn_depletes_mass_loads_the_arms_and_changes_the_orbit():
     expected = np.where(t < burn, m0 - mdot * t, m0 - mdot * burn)
     assert np.max(np.abs(o["system_mass"] - expected)) < 1e-9 * m0
     # Fig. 14: the motors take the ignition transient (the paper's saturate; with the
-    # flexibility-aware gains the peak is 62 N·m of the 80 N·m limit, docs/cases.md §5);
+    # flexibility-aware gains the peak is 62 N·m of the 80 N·m limit, docs/records.md);
     # Fig. 15: bounded bending
     assert 0.5 * p.motor.torque_max < np.max(np.abs(o["motor_torques"][t < burn])) <= p.motor.torque_max
     assert np.max(np.abs(o["link_deflection"])) < 1e-3

@@ -210,7 +210,7 @@ def test_fig13_15_burns_with_the_configuration_frozen(mission):
     for _, t0, d in burns:
         during = (t > t0) & (t < t0 + d)
         # Fig. 14: the motors take the ignition transient (the paper's saturate; with the
-        # flexibility-aware gains they peak at 64 N·m of 80, docs/cases.md §5)
+        # flexibility-aware gains they peak at 64 N·m of 80, docs/records.md)
         assert 0.5 * p.motor.torque_max < np.max(np.abs(o["motor_torques"][during])) <= p.motor.torque_max
     # Fig. 13: a small change of configuration; Fig. 15: bounded, quasi-static bending
     assert np.max(np.abs(o["joint_angles"] - o["joint_angles"][0])) < math.radians(6.0)

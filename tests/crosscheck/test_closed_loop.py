@@ -1,5 +1,5 @@
 """The sampled closed loop of p1_rigid_gains (Fig. 6a), linearised in both engines: the same
-unstable rotor modes (docs/cases.md §3.2, docs/exudyn.md §10).  Each engine linearises its
+unstable rotor modes (docs/controllers.md, docs/records.md).  Each engine linearises its
 own model (reference_model.modes.linear_plant, exudyn_model.modes.linear_plant); the
 controller's laws and the zero-order hold are the shared part (rsmcheck.orchestration.closed_loop)."""
 

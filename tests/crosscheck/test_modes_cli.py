@@ -1,4 +1,4 @@
-"""`rsmcheck modes --json` (README, command line): link frequencies analytic / reference / Exudyn and the
+"""`rsmcheck modes --json` (docs/commands.md): link frequencies analytic / reference / Exudyn and the
 coupled frequencies of four configurations, reference vs Exudyn."""
 
 from __future__ import annotations

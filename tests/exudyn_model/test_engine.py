@@ -371,8 +371,8 @@ def test_stalled_newton_step_is_retried_with_a_looser_tolerance():
 
 def test_a_new_newton_tolerance_reaches_the_solver():
     """Exudyn's solver copies its Newton settings in `InitializeSolver`: a tolerance changed
-    afterwards (the retry of a stalled step) must be set on that copy, not only on the
-    settings (where it was, until 2026-11-24, without effect)."""
+    afterwards (the retry of a stalled step) must be set on that copy: set on the settings
+    alone it has no effect."""
     eng = ExudynEngine(load_case("flex_arm_step").variant(True))
     eng.stepper.solver.InitializeSolverInitialConditions(eng.mbs, eng.stepper.settings)
     eng.stepper.set_newton_atol(7e-3)
@@ -435,9 +435,9 @@ def test_one_suspended_run_per_thread(free_drift):
 def test_quiet_intervals_take_quiet_substeps_steps(free_drift, stepping):
     """With `quiet_substeps` an interval longer than the control period (a quiet segment's)
     is cut into that many steps, and the 1 ms intervals around it keep h = 0.5 ms.  Exudyn
-    clips the step to the maxStepSize it took from the settings: until the worker set it,
-    the 2.5 ms step ran as 0.5 ms steps and stopped 0.5 ms short of a 5 ms sample (within
-    the worker's quarter step), which the clock check below now refuses."""
+    clips the step to the maxStepSize it took from the settings, so the worker sets it: left
+    alone, a 2.5 ms step would run as 0.5 ms steps and stop 0.5 ms short of a 5 ms sample
+    (within the worker's quarter step), which the clock check below refuses."""
     eng = ExudynEngine(free_drift, rigid=True, stepping=stepping, quiet_substeps=2)
     assert eng.solver_settings()["quiet_substeps"] == 2
     t = 0.0

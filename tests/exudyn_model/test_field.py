@@ -98,10 +98,8 @@ def test_a_period_held_thrust_acceleration_is_the_rocket_equation_s_mean():
     """Over a period Δt of thrust T the mass falls by ṁΔt (ṁ = T/(I_sp g0)) and O gains
     ΔV = I_sp g0 ln(m(t)/m(t + Δt)) (the rocket equation, no other force).  The held T/m is
     that of the period's middle: it misses ΔV/Δt by (ṁΔt/m)²/24, ~1e-16 here; held at the
-    period's start (until 2026-11-24) it was low by ṁΔt/(2m): 1.85e-7 at this 5 ms period,
-    3.7e-8 at the burns' 1 ms, which p4's coasts turned into 1.4e-2 m of altitude
-    (docs/cases.md §5).  The base's inertial mass is held
-    at the middle as well."""
+    period's start it would be low by ṁΔt/(2m): 1.85e-7 at this 5 ms period, 3.7e-8 at the
+    burns' 1 ms (docs/records.md).  The base's inertial mass is held at the middle as well."""
     case = load_case("thrust_burn")
     eng = ExudynEngine(case)
     a = case.params.actuators

@@ -1,5 +1,5 @@
-"""The Exudyn engine's compiled per-sample helpers against the numpy and scipy code they
-replaced, bit for bit: the saddle matrix's CSC gather (reactions.saddle_csc), the thrust
+"""The Exudyn engine's compiled per-sample helpers against the same arithmetic in numpy and
+scipy, bit for bit: the saddle matrix's CSC gather (reactions.saddle_csc), the thrust
 inertia's forces (field.held_minus_uniform) and the divergence check (stepper.all_finite).
 The sensors' gather is checked on the engine (test_engine.py)."""
 

@@ -6,8 +6,8 @@ as Dormand–Prince (agreement at the tolerance level, the error shrinking with 
 stiff set S is the static shapes (and the highest eigenmodes) in both bases; and it does
 what it is for: with the static shapes' 0.8–0.9 kHz modes in the model it takes one step
 per 1 ms control sample where the explicit pair needs two or more.  The measurement that
-it does not pay at the suite's accuracy rests on these (benchmarks/README.md).  Step
-counts are deterministic and can be asserted; wall time is not (benchmarks/).
+it does not pay at the suite's accuracy rests on these (docs/records.md).  Step
+counts are deterministic and can be asserted; wall time is not (docs/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -201,7 +201,7 @@ def test_the_quiet_segments_go_to_the_quiet_integrator():
     assert late_steps["imex"] <= 3.1 and late_steps["dopri5"] >= 8.0, late_steps
     assert imex_engine.solver_settings()["quiet_integrator"].startswith("ARK5(4)8L[2]SA")
     # measured: 2.15e-7 rad, 1.70e-4 N·m, 5.8e-10 m, of the order of either integrator's own
-    # error against rtol 1e-10 (benchmarks/README.md); the bounds are 3.5–6× those, far
+    # error against rtol 1e-10 (docs/records.md); the bounds are 3.5–6× those, far
     # below the engines' differences
     for name, bound in (("joint_angles", 1e-6), ("motor_torques", 1e-3), ("link_deflection", 2e-9)):
         assert np.max(np.abs(imex_run.observables[name] - dp5_run.observables[name])) < bound, name

@@ -4,7 +4,7 @@ What must hold: it solves the same ODE as the explicit Dormand–Prince pair (ag
 the level of the tolerances), its error control works (the error shrinks with rtol at
 second order), and it is stiff-capable: in a quiet phase it takes steps far beyond the
 explicit stability limit (~2.5 ms for the 160 Hz link modes) without going unstable.
-Step counts are deterministic, so they can be asserted; wall time is not (benchmarks/).
+Step counts are deterministic, so they can be asserted; wall time is not (docs/benchmarks.md).
 """
 
 from __future__ import annotations

@@ -224,7 +224,7 @@ def test_without_stored_studies_or_goldens_each_section_says_so(rendered, tmp_pa
     are left out of the verdict (counted in one line), not shown as failures."""
     import rsmcheck.report.build as build
 
-    monkeypatch.setattr(build, "GOLDEN_DIR", tmp_path / "no-goldens")
+    monkeypatch.setenv("RSMCHECK_GOLDENS_DIR", str(tmp_path / "no-goldens"))
     doc = json.loads((rendered.folder / "verdict.json").read_text())
     doc["gate"] = doc.get("gate", []) + [
         {"case": "free_drift", "engine": "exudyn", "unchanged": False, "inputs_changed": ["no golden x.h5"],

@@ -1,4 +1,4 @@
-"""The command line (README, "Command line"): bad input exits 2 with exactly one line on
+"""The command line (docs/commands.md): bad input exits 2 with exactly one line on
 stderr naming the file and the field, no traceback and nothing written (an output path that
 is a file included, checked before anything runs); `cases` lists the cases; `run` writes a
 readable HDF5 file with every observable; a reader that goes away (`| head -1`) ends a
@@ -259,7 +259,7 @@ def test_output_dir_that_is_a_file_exits_2(tmp_path, capsys, argv):
 
 
 def test_run_out_file_in_a_real_process(tmp_path):
-    """It was a FileExistsError traceback and exit 1."""
+    """--out naming a file is one line and exit 2 in a real process, not a traceback."""
     f = tmp_path / "results.txt"
     f.write_text("")
     proc = subprocess.run([sys.executable, "-m", "rsmcheck.cli", "run", "free_drift", "--out", str(f)],
@@ -431,7 +431,8 @@ def test_an_output_path_that_cannot_be_created_exits_2_before_running(monkeypatc
 
 @needs_proc
 def test_run_out_in_proc_in_a_real_process():
-    """It was a FileNotFoundError traceback (mkdir) and exit 1."""
+    """--out in an unwritable place is one line and exit 2 in a real process, not a
+    FileNotFoundError traceback from mkdir."""
     proc = subprocess.run([sys.executable, "-m", "rsmcheck.cli", "run", "free_drift", "--out", UNWRITABLE],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2, proc.stderr

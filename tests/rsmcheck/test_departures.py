@@ -1,34 +1,13 @@
 """The departures from the paper have one source, rsmcheck/core/departures.toml: the report
-shows it and the table of docs/physics.md §9 is its rendering
-(`python -m rsmcheck.core.departures --write docs/physics.md` regenerates it)."""
+shows it, and the table of docs/physics.md §9 is a generated block rendered from it
+(rsmcheck.orchestration.doc_tables; tests/docs/test_doc_tables.py checks the page)."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
-
-import pytest
 
 from rsmcheck.core import departures
-from rsmcheck.core.errors import InputError
-
-DOC = Path(__file__).resolve().parents[2] / "docs" / "physics.md"
-
-
-def section_9(text: str) -> str:
-    start = text.index("\n## 9. ")
-    return text[start:text.index("\n## ", start + 1)]
-
-
-def test_docs_physics_shows_the_data_file():
-    text = DOC.read_text(encoding="utf-8")
-    shown = departures.table_in(text)
-    assert shown, f"no line {departures.MARKER!r} in {DOC}"
-    assert shown in section_9(text), "the generated table is not in §9"
-    assert shown == departures.markdown(), (
-        "docs/physics.md §9 differs from rsmcheck/core/departures.toml: "
-        "python -m rsmcheck.core.departures --write docs/physics.md")
 
 
 def test_the_data_file_has_every_column_of_each_row():
@@ -38,27 +17,15 @@ def test_the_data_file_has_every_column_of_each_row():
     assert any("static correction shapes" in r[1] for r in rows)
 
 
-def test_a_changed_row_shows_as_a_difference():
-    """The comparison can fail: one cell changed in the document is seen, and --write's
-    replacement restores the data file's rendering."""
-    text = DOC.read_text(encoding="utf-8")
-    shown = departures.table_in(text)
-    assert "J_extra = 0.388 kg·m²" in shown
-    changed = text.replace(shown, shown.replace("J_extra = 0.388 kg·m²", "J_extra = 0.39 kg·m²"))
-    assert changed != text
-    assert departures.table_in(changed) != departures.markdown()
-    assert departures.replace_table(changed) == text
-    with pytest.raises(InputError):
-        departures.replace_table("# no table here\n")
+def test_the_markdown_has_one_line_per_row_and_escapes_bars():
+    head, rows = departures.table()
+    lines = departures.markdown().splitlines()
+    assert len(lines) == 2 + len(rows)
+    assert lines[0] == "| " + " | ".join(head) + " |"
+    assert any("\\|" in line for line in lines), "the bistop row's |ψ| must be escaped"
 
 
-def test_the_command_prints_and_writes(tmp_path):
+def test_the_command_prints_the_table():
     proc = subprocess.run([sys.executable, "-m", "rsmcheck.core.departures", "--markdown"],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0 and proc.stdout == departures.markdown()
-    doc = tmp_path / "physics.md"
-    doc.write_text(f"# x\n\n{departures.MARKER}\n| old | table |\n|---|---|\n\nafter\n", encoding="utf-8")
-    proc = subprocess.run([sys.executable, "-m", "rsmcheck.core.departures", "--write", str(doc)],
-                          capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, proc.stderr
-    assert doc.read_text(encoding="utf-8") == f"# x\n\n{departures.markdown()}\nafter\n"

@@ -1,4 +1,7 @@
-"""The observable schema against docs/physics.md §11, and what check_observables rejects."""
+"""The observable schema against a hand-written oracle, and what check_observables rejects.
+
+The table of docs/observables.md is a generated block rendered from the schema
+(rsmcheck.orchestration.doc_tables; tests/docs/test_doc_tables.py checks the page)."""
 
 from __future__ import annotations
 
@@ -18,8 +21,7 @@ from rsmcheck.core.observables import (
 )
 
 # The observable names and shapes, copied by hand: the test oracle for the schema in code
-# (θ_J beside ψ_J, and the wrist angles of the bistop, included).  The table of
-# docs/physics.md §11 is checked against the code below.
+# (θ_J beside ψ_J, and the wrist angles of the bistop, included).
 HAND_TABLE = {
     "joint_frame_angles": (6,),
     "wrist_angles": (2,),
@@ -73,16 +75,6 @@ def test_every_row_has_unit_and_meaning():
     assert BY_NAME["system_mass"].unit == "kg"
     assert BY_NAME["energy"].unit == "J"
 
-
-def test_the_docs_table_is_the_schema():
-    """docs/physics.md §11 lists every observable as the code has it: name, shape, unit,
-    meaning, in the schema's order (regenerate the table from OBSERVABLES when it changes)."""
-    doc = (Path(__file__).resolve().parents[2] / "docs" / "physics.md").read_text()
-    section = doc.split("## 11. Observables and run files", 1)[1].split("\n## ", 1)[0]
-    rows = [line for line in section.splitlines() if line.startswith("| `")]
-    expected = [f"| `{s.name}` | {'–' if s.shape == () else ' × '.join(map(str, s.shape))} | {s.unit} | {s.meaning} |"
-                for s in OBSERVABLES]
-    assert rows == expected
 
 def test_spec_is_frozen():
     with pytest.raises(dataclasses.FrozenInstanceError):

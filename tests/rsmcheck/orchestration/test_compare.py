@@ -1,5 +1,5 @@
 """rsmcheck.orchestration.compare: the metrics of the [compare] tables, margins, the relative
-differences with their floors, and the `check` command's exit codes and JSON (README, command line)."""
+differences with their floors, and the `check` command's exit codes and JSON (docs/commands.md)."""
 
 from __future__ import annotations
 
@@ -327,7 +327,7 @@ def test_check_bad_input_exits_2(argv, field, capsys):
 @pytest.mark.crosscheck
 def test_check_runs_both_engines():
     """A real (serial) check of the shortest case, flex_arm_step cut to its first 0.1 s:
-    one row per [compare] entry with the keys README's command line lists (pass/fail: tests/crosscheck)."""
+    one row per [compare] entry with the keys docs/commands.md lists (pass/fail: tests/crosscheck)."""
     import rsmcheck.orchestration.compare as cmp
 
     case = load_case("flex_arm_step").variant(True)

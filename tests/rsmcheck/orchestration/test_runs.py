@@ -204,8 +204,8 @@ def _next_of_nothing():
 
 
 def test_a_fault_in_the_code_is_named_with_the_place_it_was_raised_at():
-    """The traceback stays in the worker; a bare `StopIteration` (an engine option taken
-    from three Nones, seen 2026-11-26) said nothing of where.  The exception carries the
+    """The traceback stays in the worker; a bare `StopIteration` (e.g. an engine option taken
+    from three Nones) would say nothing of where.  The exception carries the
     file, line and function as a note, through pickling, and the progress line shows it;
     rsmcheck's own errors (their messages name the input or the time) get none."""
     job = Job("broken", _next_of_nothing, (), 1.0)

@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import pytest
 
 from rsmcheck.orchestration.targets import TARGETS, read_targets, targets_table
-
-DATA = Path(__file__).resolve().parents[3] / "docs" / "data"
 
 
 def _mission(engine, wall, phases=(), variant="full", **extra):
@@ -92,25 +88,3 @@ def test_table_names_each_measured_target_with_its_verdict():
     assert len(lines) == 2 + 3  # header, rule, reference mission, its phases, the RHS ratio
     assert "≤ 300 s" in lines[2] and " no " in lines[2]
     assert "≥ 20 × real time" in lines[3] and " yes " in lines[4]
-
-
-def test_readme_speed_table_says_what_the_stored_full_bench_measured():
-    """README's speed table gives, per target, the margin (to 2 digits), the margin of the
-    integrator alone and the verdict of the stored full-length bench
-    (docs/data/bench_all.json), and names the processor it ran on: a new bench that changes
-    them changes the README."""
-    doc = json.loads((DATA / "bench_all.json").read_text())
-    readings = read_targets(doc)
-    assert all(x.measured is not None for x in readings)
-    readme = (DATA.parents[1] / "README.md").read_text(encoding="utf-8")
-    speed = readme[readme.index("## Speed"):]
-    assert doc["machine"]["cpu"] in " ".join(speed.replace("*", "").split()), \
-        "README's speed section does not name the bench's processor"
-    for x in readings:
-        row = next((line for line in speed.splitlines() if line.startswith(f"| {x.target.text}")), None)
-        assert row is not None, f"README's speed table has no row '{x.target.text}'"
-        cells = [c.strip() for c in row.strip().strip("|").split("|")]
-        margin, alone, verdict = cells[-3:]
-        assert verdict == ("met" if x.met else "not met"), (row, x.margin)
-        assert float(margin) == pytest.approx(x.margin, abs=0.005), (row, x.margin)
-        assert alone == ("–" if x.floor_margin is None else f"{x.floor_margin:.2f}"), (row, x.floor_margin)
