@@ -31,8 +31,9 @@ test: venv
 study: venv
 	$(VPY) -m pytest -m study $(PYTEST_ARGS)
 
-# Fault injection (docs/gate.md): ~17 plausible bugs, each in a copy of the tree; which
-# checks catch which.  Not in CI (≈ 20 min on 2 cores); writes docs/data/faults.json.
+# Fault injection (docs/gate.md): ~23 plausible bugs, each in a copy of the tree, on every
+# case and the chained short mission; which checks catch which on which case.  Not in CI
+# (≈ 50 min on 2 idle cores); writes docs/data/faults.json.
 faults: venv
 	$(VPY) -m rsmcheck.orchestration.faults
 
