@@ -32,8 +32,9 @@ test: venv
 study: venv
 	$(VPY) -m pytest -m study $(PYTEST_ARGS)
 
-# Fault injection (docs/gate.md): plausible bugs, each in a copy of the tree; which
-# checks catch which.  Not in CI (tens of minutes); writes docs/data/faults.json.
+# Fault injection (docs/gate.md): plausible bugs, each in a copy of the tree, on every case
+# and the chained short mission; which checks catch which on which case.  Not in CI (about
+# 50 min on 2 idle cores); writes docs/data/faults.json.
 faults: venv
 	$(VPY) -m rsmcheck.orchestration.faults
 

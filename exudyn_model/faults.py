@@ -17,4 +17,12 @@ FAULTS: tuple[Fault, ...] = (
           "stiffness=w.stiffness, damping=w.contact_damping,",
           "stiffness=0.5 * w.stiffness, damping=w.contact_damping,",
           "Exudyn: wrist bistop stiffness halved"),
+    Fault("exu_reaction_sign", "exudyn_model/reactions.py",
+          "out[2 * k:2 * k + 2] = forces[k][:2]", "out[2 * k:2 * k + 2] = -forces[k][:2]",
+          "Exudyn: reaction_forces_I read on the joint's marker-1 side (−λ, the force on the end "
+          "effector) instead of the arm's force on the target"),
+    Fault("exu_held_point_rotation", "exudyn_model/switching.py",
+          "state.rho_G[k] = rot(XT[2]).T @ (rE[k] - XT[:2])", "state.rho_G[k] = rot(XT[2]) @ (rE[k] - XT[:2])",
+          "Exudyn: the held point at a capture taken into the target frame by A(θ_T) instead of "
+          "A(θ_T)ᵀ (off the end effector unless θ_T = 0)"),
 )

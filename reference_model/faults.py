@@ -41,6 +41,22 @@ FAULTS: tuple[Fault, ...] = (
           "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, report.dropped_momentum)",
           "switch_basis(model, x, cfg, 3 * k + 2, PF)\n    project_velocities(model, x, cfg, None)",
           "release: the generalised momentum the PF basis cannot carry is dropped, not given back"),
+    # ---- the closed chain and the capture (docs/physics.md §4) ----------------------------
+    Fault("ref_reaction_sign", "reference_model/observe.py",
+          "reaction[2 * k:2 * k + 2] = Rc[row:row + 2]", "reaction[2 * k:2 * k + 2] = -Rc[row:row + 2]",
+          "reaction_forces_I reported as −R_cl, the force on the end effector (W = −Gᵀ), "
+          "instead of R_cl, the force on the target"),
+    Fault("ref_grasp_moment_arm_sign", "reference_model/system.py",
+          "G[row, nq + 2] = gy  # −A S ρ_G = −(−gy, gx)", "G[row, nq + 2] = -gy  # −A S ρ_G = −(−gy, gx)",
+          "grasp constraint, x row, target-rotation entry −gy instead of gy (a sign of −A S ρ_G slipped): "
+          "the moment of the reaction about the target COM (W = −Gᵀ) and φ's Jacobian wrong in one entry"),
+    Fault("ref_baumgarte_stiffness", "reference_model/system.py",
+          "- sc[S_BETA] ** 2 * phi[row + d])", "- sc[S_BETA] * phi[row + d])",
+          "Baumgarte eq. (12): φ̈ + 2α φ̇ + β φ instead of φ̈ + 2α φ̇ + β² φ (stiffness 10 instead of 100 s⁻²)"),
+    Fault("ref_impact_euclidean", "reference_model/switching.py",
+          "MinvAt = np.linalg.solve(M, A.T)", "MinvAt = A.T",
+          "plastic impact projected in the Euclidean metric, Ẏ⁺ = Ẏ − Aᵀ(AAᵀ)⁻¹AẎ, instead of the "
+          "kinetic-energy one: the capture's impulse is not internal, momentum is not conserved"),
     # ---- control: a change that changes no arithmetic (a name starting with noop_) -------
     Fault("noop_commuted_sum", "reference_model/link.py",
           "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_JEX] + sc[S_I0]",

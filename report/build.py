@@ -14,7 +14,8 @@ convergence studies, speed, fault injection) and runs nothing.  The page, top to
    phase's events marked;
 4. the paper's figures reproduced from the runs (report.paper);
 5. every case: its checks, events, and its observables with the golden overlaid;
-6. Pinocchio, eigenfrequencies, engine studies, speed, fault injection.
+6. Pinocchio, eigenfrequencies, engine studies, speed, fault injection (the fault × case
+   matrix, `fault_matrix`).
 
 Plots are plotly.js figures (inlined once), drawn when they scroll into view (all at once
 before printing, or with ``#render-all`` in the address).  The page is written to a
@@ -43,6 +44,7 @@ from rsmcheck.orchestration.bench import per_sample_us
 from rsmcheck.orchestration.bench_diff import work
 from rsmcheck.orchestration.collect import MODES, VERDICT, phase_runs
 from rsmcheck.orchestration.compare import metric_label
+from rsmcheck.orchestration.faults import CASE_CHECKS, cell_letters
 from rsmcheck.orchestration.gate import golden_path, goldens_dir, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
@@ -352,6 +354,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     figures = paper.figures(page, st)
     dep_head, dep_rows = departures_table()
     bench = speed_sections(page, _stored_json(data_dir, "bench_*.json"))
+    faults = next((doc for _, doc in _stored_json(data_dir, "faults.json")), None)
     html_text = _environment().get_template("page.html.j2").render(
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
         kinds=sorted({r.kind for r in rows}), missing_goldens=missing_goldens, missions=missions, cases=cases,
@@ -359,7 +362,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
         rigid=[{"label": plugins()[n].label if n in plugins() else n, "checks": c} for n, c in v.get("rigid", {}).items()],
         modes=st.modes, mode_engines=_mode_engines(st.modes),
         studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
-        faults=_stored_json(data_dir, "faults.json"),
+        faults=faults, fault_list=fault_rows(faults) if faults else [], fault_matrix=fault_matrix(faults),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
         plotly_js=plotly.offline.get_plotlyjs(), short=st.short)
     return write_text(out, html_text)
@@ -426,3 +429,77 @@ def _phase_speed_figure(page: Page, doc: dict) -> str:
 def _studies(data_dir: Path) -> dict[str, list]:
     """The stored engine studies of docs/data, by kind."""
     return {kind: _stored_json(data_dir, f"{kind}_*.json") for kind in ("rigid_steps", "convergence", "refinement")}
+
+
+# ---------------------------------------------------------------------------------------
+# the fault-injection matrix (rsmcheck.orchestration.faults, docs/data/faults.json)
+# ---------------------------------------------------------------------------------------
+#: the per-fault checks drawn after the cases' columns, with their letters
+FAULT_CHECKS = {"rigid": "R", "analytic": "A"}
+#: characters of a cell's tooltip (the failing rows)
+TITLE_CHARS = 900
+
+
+def _cell_class(letters: str, control: bool) -> str:
+    """A matrix cell's colour: caught by the control (a false alarm), by the cross-check
+    and the gate, by one of them, by a per-fault check, or by nothing."""
+    if not letters:
+        return "fm-none"
+    if control:
+        return "fm-false"
+    return {"CG": "fm-cg", "C": "fm-c", "G": "fm-g"}.get(letters, "fm-x")
+
+
+def _title(head: str, lines: Sequence[str]) -> str:
+    text = "\n".join([head, *lines]) if lines else f"{head}: caught by nothing"
+    return text if len(text) <= TITLE_CHARS else text[:TITLE_CHARS - 1] + "…"
+
+
+def fault_rows(doc: dict) -> list[dict]:
+    """One row per fault of a stored matrix: its name, layer, what, the failing rows of each
+    check ('CASE: row' for the per-case ones) and whether it came out as expected (a
+    control caught by nothing, any other fault caught by something).  A document from
+    before the matrix had cells per case holds the per-case rows in flat lists already."""
+    out = []
+    for f in doc.get("faults", []):
+        cells = f.get("cases")
+        rows = {k: ([f"{case}: {row}" for case, cell in cells.items() for row in cell.get(k, [])]
+                    if isinstance(cells, dict) else list(f.get(k) or [])) for k in CASE_CHECKS}
+        control = f.get("layer") == "none"
+        caught = bool(f.get("caught_by"))
+        out.append({"name": f.get("name", ""), "layer": f.get("layer", ""), "what": f.get("what", ""), **rows,
+                    "rigid": list(f.get("rigid") or []), "analytic": list(f.get("analytic") or []),
+                    "control": control, "ok": not caught if control else caught})
+    return out
+
+
+def fault_matrix(doc: dict | None) -> dict | None:
+    """The fault × case × check matrix as the page draws it: one row per fault, one column
+    per case, each cell the letters of the per-case checks that caught the fault on that
+    case (`CASE_CHECKS`: C cross-check, G gate; '·' nothing) with the failing rows as its
+    tooltip, then one column per per-fault check (R rigid, A analytic), and a last row
+    counting, per column, the faults caught there (controls aside).  None without a stored
+    document or for one without cells per case."""
+    if not doc or not doc.get("faults") or not all(isinstance(f.get("cases"), dict) for f in doc["faults"]):
+        return None
+    cases = list(doc.get("cases") or [])
+    rows, totals = [], [0] * (len(cases) + len(FAULT_CHECKS))
+    for f, summary in zip(doc["faults"], fault_rows(doc)):
+        cells = []
+        for case in cases:
+            cell = f["cases"].get(case)
+            if cell is None:
+                cells.append({"text": "", "cls": "fm-out", "title": f"{case}: not run"})
+                continue
+            letters = cell_letters(cell)
+            lines = [f"{k}: {row}" for k in CASE_CHECKS for row in cell.get(k, [])]
+            cells.append({"text": letters or "·", "cls": _cell_class(letters, summary["control"]),
+                          "title": _title(f"{f['name']} on {case}", lines)})
+        for k, letter in FAULT_CHECKS.items():
+            found = summary[k]
+            cells.append({"text": letter if found else "·", "cls": _cell_class(letter if found else "", summary["control"]),
+                          "title": _title(f"{f['name']}, {k}", found)})
+        if not summary["control"]:
+            totals = [n + (c["text"] not in ("", "·")) for n, c in zip(totals, cells)]
+        rows.append({**summary, "cells": cells})
+    return {"cases": cases, "checks": list(FAULT_CHECKS), "rows": rows, "totals": totals}

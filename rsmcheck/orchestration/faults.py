@@ -1,28 +1,41 @@
-"""Fault injection: which checks of the suite catch which plausible modelling bugs.
+"""Fault injection: which checks of the suite catch which plausible modelling bugs, case by case.
 
-`make faults` (not in CI; ≈ 20 min on 2 cores) = ``python -m rsmcheck.orchestration.faults``.  Each
+`make faults` (not in CI; ≈ 50 min on 2 idle cores) = ``python -m rsmcheck.orchestration.faults``.  Each
 fault of the `catalogue` (each engine plug-in's own `faults()`, the shared ones, the
 controls) is one textual change (an exact string that must occur once) applied to a
-temporary copy of the tree; in that copy the short variants of `CASES` are run by the
-engines the fault can affect, and four kinds of check look at them:
+temporary copy of the tree.  In that copy every case of the matrix (`matrix_cases`: every
+stand-alone case, i.e. every case file but the sequences, and each sequence — the mission,
+its short phases flown chained as `rsmcheck report` flies them) is run in its short
+variant by the engines the fault can affect, and four kinds of check look at the runs:
 
-* **cross-check**: the case's `[compare]` rows, the first default engine against the
-  others (rsmcheck.core.plugins.default_engines).  When only one
-  engine is faulted, the other engine's run is its unfaulted *baseline* run: both engines
-  run the cases once on the unfaulted copy before the faults (every sample, so that a
-  metric such as `growth` sees the same grid; the baseline's own cross-check must pass,
-  else every catch would be meaningless and the driver stops);
-* **rigid**: each checking plug-in's `rigid_checks` (Pinocchio: rigid kinematics and
-  dynamics, 20 seeded states per chain, rigid and with modes), for faults that reach the
-  engine it checks;
-* **gate**: each re-run engine against its golden (docs/gate.md);
-* **analytic**: the tests of each reached engine against analytic references (its
-  plug-in's `analytic_tests`; the reference's: conservation of energy and momentum, the
-  Baumgarte decay of eq. (12), Table 2's frequencies), run by pytest in the copy.
+* **cross-check** (per case): the case's `[compare]` rows, the first default engine against
+  the others (`compare.case_rows`, as `rsmcheck check`); for the mission, each phase of the
+  chained flight by its own rows plus what the engines carry into it
+  (`collect.mission_checks`, as the report).  When only one engine is faulted, the other
+  engine's run is its unfaulted *baseline* run: both engines run the cases once on the
+  unfaulted copy before the faults (every sample, so that a metric such as `growth` sees
+  the same grid; the baseline must pass its own cross-check and gate, else no catch
+  would mean anything and the driver stops);
+* **gate** (per case): each re-run engine against its golden (docs/gate.md).  A sequence
+  is gated phase by phase: the mission's cell holds its phases' stand-alone short runs
+  against their goldens (the runs of those phases' own columns);
+* **rigid** (per fault): each checking plug-in's `rigid_checks` (Pinocchio: rigid
+  kinematics and dynamics, 20 seeded states per chain, rigid and with modes), for faults
+  that reach the engine it checks;
+* **analytic** (per fault): the tests of each reached engine against analytic references
+  (its plug-in's `analytic_tests`; the reference's: conservation of energy and momentum,
+  the Baumgarte decay of eq. (12), Table 2's frequencies), run by pytest in the copy.
 
-The catch matrix goes to docs/data/faults.json and into the report.  The control fault
-("noop_commuted_sum") changes code without changing arithmetic and must be caught by
-nothing: it shows that the gate is not a change detector for text.
+A run that fails (diverges, raises) is a catch: of the gate, and of the cross-check where
+the case has rows.  The matrix — fault × case × check — goes to docs/data/faults.json:
+per fault, per case, the failing rows of each per-case check (`CASE_CHECKS`), the failing
+rigid rows and analytic tests, and `caught_by`, the checks that caught it anywhere.  The
+report draws it (report/build.py, `fault_matrix`).  The control fault ("noop_commuted_sum")
+changes code without changing arithmetic and must be caught by nothing: it shows that the
+gate is not a change detector for text.
+
+``--cases A B …`` restricts the columns (development; a restricted run or one of named
+faults writes next to the copy unless ``--out`` says where, never over the stored matrix).
 
 Every fault starts from an empty numba cache (compiled once in the probe's process, then
 loaded by its workers).  numba keys a cached function on its own file's stamp, not on the
@@ -44,26 +57,30 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any, Mapping, Sequence
 
-from rsmcheck.core.cases import Case, load_case
+from rsmcheck.core import cases as case_files
+from rsmcheck.core.cases import CASES_ENV, Case, list_cases, load_case, sibling_case
 from rsmcheck.core.plugins import Fault, default_engines, make_engine, plugin, plugins, simulators, with_capability
-from rsmcheck.orchestration.compare import check_runs
+from rsmcheck.orchestration.collect import mission_checks
+from rsmcheck.orchestration.compare import case_rows
 from rsmcheck.orchestration.executor import SCHEDULER_ENV
-from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
-from rsmcheck.orchestration.runs import Job, expected_wall, run_engine, run_jobs
+from rsmcheck.orchestration.gate import compare_with_golden, gated_cases, golden_path, read_golden
+from rsmcheck.orchestration.runs import RunSet, get_runs
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import EngineRun, git_commit, read_run, write_json, write_run
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "data" / "faults.json"
-#: the cases every fault is tried on: fast short variants that together exercise every
-#: mechanism (open/closed chain, capture-free release, bistop, orbit, thrust, growth)
-CASES = ("p1_rigid_gains", "flex_arm_step", "release", "gravity_gradient", "wrist_bistop", "thrust_burn")
 RIGID_STATES = 20
 #: the checks of the catch matrix, in its order
 CHECKS = ("crosscheck", "rigid", "gate", "analytic")
-#: where the driver's copy keeps the unfaulted runs of CASES (relative to the copy's root)
+#: the checks that look at one case's runs (the others, once per fault)
+CASE_CHECKS = ("crosscheck", "gate")
+#: where the driver's copy keeps the unfaulted runs of the cases (relative to the copy's root)
 BASELINE_DIR = ".faults_baseline"
+#: moved observables a gate row names (the largest changes first), the rest counted
+GATE_NAMED = 4
 
 
 @dataclass(frozen=True)
@@ -90,6 +107,8 @@ SHARED_FAULTS: tuple[Fault, ...] = (
           "motor_torques = [0.0, 0.0, 0.0, 10.5, 0.0, 0.0]",
           "case file: flex_arm_step's shoulder torque 10.5 N·m instead of 10"),
 )
+
+
 def catalogue() -> list[Injected]:
     """Every fault: each engine plug-in's own, the shared ones, and the controls (a plug-in's
     fault whose name starts with "noop_": code changed, arithmetic not; caught by nothing)."""
@@ -97,6 +116,26 @@ def catalogue() -> list[Injected]:
     out = [Injected(f, name) for f, name in own if not f.name.startswith("noop_")]
     out += [Injected(f, "shared") for f in SHARED_FAULTS]
     return out + [Injected(f, "none") for f, _ in own if f.name.startswith("noop_")]
+
+
+def matrix_cases() -> list[str]:
+    """The matrix's columns: the project's cases (its case folder; a user's own have no
+    goldens), every stand-alone one (those the gate has goldens for, `gate.gated_cases`),
+    then every sequence (the mission, flown chained)."""
+    own = [load_case(p) for p in list_cases() if p.parent.resolve() == case_files.CASES_DIR.resolve()]
+    stand_alone = {c.name for c in gated_cases()}
+    return [c.name for c in own if c.name in stand_alone] + [c.name for c in own if c.phases]
+
+
+def select_cases(names: Sequence[str] | None) -> list[str]:
+    """The columns `names` asks for, in the matrix's order (all without names); an unknown
+    name stops the driver before anything runs."""
+    known = matrix_cases()
+    unknown = [n for n in names or () if n not in known]
+    if unknown:
+        raise SystemExit(f"rsmcheck.orchestration.faults: unknown case(s) {', '.join(unknown)} "
+                         f"(the matrix's: {', '.join(known)})")
+    return [n for n in known if not names or n in names]
 
 
 # ---------------------------------------------------------------------------------------
@@ -137,39 +176,63 @@ def _in_copy(tree: Path, *args: str) -> subprocess.CompletedProcess:
     an empty numba cache (module doc: the cache does not see a change in a called file)."""
     cache = tree / ".numba_cache"
     shutil.rmtree(cache, ignore_errors=True)
-    # the copy's jobs run its own (faulted) code on this machine, never on a cluster's workers
-    env = {k: v for k, v in os.environ.items() if k != SCHEDULER_ENV}
+    # the copy's jobs run its own (faulted) code on this machine, never on a cluster's
+    # workers; its case files are its own (`matrix_cases`; a folder of $RSMCHECK_CASES_DIR
+    # that is the tree's cases/ would hold every name twice)
+    env = {k: v for k, v in os.environ.items() if k not in (SCHEDULER_ENV, CASES_ENV)}
     env.update(PYTHONPATH=str(tree), NUMBA_CACHE_DIR=str(cache))
     return subprocess.run([sys.executable, "-m", "rsmcheck.orchestration.faults", *args],
                           cwd=tree, env=env, capture_output=True, text=True)
 
 
-def run_baseline(tree: Path) -> None:
-    """The unfaulted runs of CASES in both engines, stored in the copy (module doc)."""
-    proc = _in_copy(tree, "baseline")
+def _last_json(proc: subprocess.CompletedProcess) -> dict:
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def run_baseline(tree: Path, cases: Sequence[str]) -> dict:
+    """The unfaulted runs of `cases` in both engines, stored in the copy (module doc); stops
+    when they fail their own cross-check or gate.  Returns the baseline's wall times."""
+    proc = _in_copy(tree, "baseline", "--cases", *cases)
     if proc.returncode != 0:
         raise RuntimeError(f"the baseline runs failed:\n{proc.stderr[-3000:]}")
-    failed = json.loads(proc.stdout.strip().splitlines()[-1])["crosscheck"]
+    result = _last_json(proc)
+    failed = [f"{case} {check}: {row}" for case, cell in result["cases"].items()
+              for check in CASE_CHECKS for row in cell[check]]
     if failed:
-        raise RuntimeError("the unfaulted baseline fails its own cross-check, so no fault's catch would "
+        raise RuntimeError("the unfaulted baseline fails its own cross-check or gate, so no fault's catch would "
                            "mean anything: " + "; ".join(failed))
+    return result
 
 
-def run_fault(item: Injected, tree: Path, progress=print) -> dict:
+def caught_by(result: Mapping[str, Any]) -> list[str]:
+    """The checks that caught a fault anywhere: a per-case check on some case, or a
+    per-fault check (rigid, analytic)."""
+    return [k for k in CHECKS
+            if (any(cell[k] for cell in result["cases"].values()) if k in CASE_CHECKS else result[k])]
+
+
+def cell_letters(cell: Mapping[str, Sequence[str]]) -> str:
+    """The checks that caught a fault on one case, as the report's cell shows them ("CG")."""
+    return "".join(k[0].upper() for k in CASE_CHECKS if cell.get(k))
+
+
+def run_fault(item: Injected, tree: Path, cases: Sequence[str], progress=print) -> dict:
     fault = item.fault
     apply(fault, tree)
     t0 = time.monotonic()
     try:
-        proc = _in_copy(tree, "probe", fault.name)
+        proc = _in_copy(tree, "probe", fault.name, "--cases", *cases)
     finally:
         revert(fault, ROOT, tree)
     if proc.returncode != 0:
         raise RuntimeError(f"fault {fault.name}: the probe failed:\n{proc.stderr[-3000:]}")
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    result = _last_json(proc)
     result.update(asdict(fault), layer=item.layer, wall_s=round(time.monotonic() - t0, 1))
-    result["caught_by"] = [k for k in CHECKS if result[k]]
-    progress(f"{fault.name}: caught by {', '.join(result['caught_by']) or 'NOTHING'} "
-             f"({result['wall_s']:.0f} s)")
+    result["caught_by"] = caught_by(result)
+    cells = {case: cell_letters(cell) for case, cell in result["cases"].items()}
+    on = ", ".join(f"{case} {letters}" for case, letters in cells.items() if letters)
+    progress(f"{fault.name}: caught by {', '.join(result['caught_by']) or 'NOTHING'}"
+             f"{f'; on {on}' if on else ''} ({result['wall_s']:.0f} s)")
     return result
 
 
@@ -179,25 +242,33 @@ def main(argv=None) -> int:
     ap.add_argument("command", nargs="?", default="all",
                     help="all (default); probe and baseline run inside the copy")
     ap.add_argument("names", nargs="*", help="only these faults (default: all)")
-    ap.add_argument("--out", default=str(OUT))
+    ap.add_argument("--cases", nargs="+", metavar="CASE",
+                    help="only these cases (default: every stand-alone case and the mission)")
+    ap.add_argument("--out", help=f"where the matrix goes (default: {OUT.relative_to(ROOT)} for the whole "
+                                  "matrix, faults.json beside the copy for a restricted one)")
     ap.add_argument("--tree", default="/tmp/rsmcheck-faults/tree", help="where the copy of the tree goes")
     args = ap.parse_args(argv)
+    cases = select_cases(args.cases)
     if args.command == "probe":
-        print(json.dumps(probe(_by_name(args.names[0]))))
+        print(json.dumps(probe(_by_name(args.names[0]), cases)))
         return 0
     if args.command == "baseline":
-        print(json.dumps(baseline()))
+        print(json.dumps(baseline(cases)))
         return 0
     faults = [_by_name(n) for n in args.names] if args.names else catalogue()
+    restricted = bool(args.names or args.cases)
+    out_path = Path(args.out) if args.out else (Path(args.tree).parent / "faults.json" if restricted else OUT)
     tree = make_copy(ROOT, Path(args.tree))
-    print(f"fault injection: {len(faults)} faults on a copy in {tree}; cases {', '.join(CASES)}", flush=True)
+    print(f"fault injection: {len(faults)} faults on a copy in {tree}; cases {', '.join(cases)}", flush=True)
     t0 = time.monotonic()
-    run_baseline(tree)
-    print(f"baseline: both engines unfaulted, cross-check passes ({time.monotonic() - t0:.0f} s)", flush=True)
-    results = [run_fault(f, tree, lambda s: print(s, flush=True)) for f in faults]
-    doc = {"cases": list(CASES), "rigid_states": RIGID_STATES, "commit": git_commit()[0],
-           "faults": results}
-    out = write_json(Path(args.out), doc)
+    base = run_baseline(tree, cases)
+    base_wall = time.monotonic() - t0
+    print(f"baseline: both engines unfaulted, cross-check and gate pass ({base_wall:.0f} s)", flush=True)
+    results = [run_fault(f, tree, cases, lambda s: print(s, flush=True)) for f in faults]
+    doc = {"cases": cases, "checks": list(CHECKS), "case_checks": list(CASE_CHECKS), "rigid_states": RIGID_STATES,
+           "commit": git_commit()[0], "wall_s": round(time.monotonic() - t0, 1),
+           "baseline": {"wall_s": round(base_wall, 1), "runs_wall_s": base["runs_wall_s"]}, "faults": results}
+    out = write_json(out_path, doc)
     missed = [r["name"] for r in results if r["layer"] != "none" and not r["caught_by"]]
     false = [r["name"] for r in results if r["layer"] == "none" and r["caught_by"]]
     print(f"wrote {out}: {len(results) - len(missed) - len(false)} of {len(results)} as expected"
@@ -214,58 +285,124 @@ def _by_name(name: str) -> Injected:
 
 
 # ---------------------------------------------------------------------------------------
-# the probe: runs inside the faulted copy (its own imports)
+# the probe and the baseline: run inside the (faulted) copy, with its own imports
 # ---------------------------------------------------------------------------------------
-def _run_cases(engines: list[str]) -> tuple[list[Case], dict[tuple[str, str], EngineRun]]:
-    """The short variants of CASES run by `engines` in this tree: (variants, (case, engine) → run)."""
+def _to_run(columns: Sequence[Case], gate_phases: bool) -> list[Case]:
+    """The cases to run for `columns`: each column and, with `gate_phases`, each sequence's
+    short phases (their stand-alone runs are its gate cell; a phase that starts the short
+    flight is cut from the flight instead, `runs.get_runs`)."""
+    out = {c.name: c for c in columns}
+    for c in columns if gate_phases else ():
+        for phase in c.variant(True).phases:
+            out.setdefault(phase, load_case(sibling_case(phase, Path(c.path))))
+    return list(out.values())
+
+
+def _run_cases(columns: Sequence[Case], engines: Sequence[str], gate_phases: bool) -> RunSet:
+    """The short runs of `columns` (and what their gate needs) by `engines` in this tree;
+    a run that fails is left out, its error in `RunSet.errors`."""
     for name in engines:  # compile each engine once, in this process, before the workers
         c = load_case("p1_rigid_gains").variant(True)
         run(make_engine(name, c), c, 0.002)
-    variants = [load_case(n).variant(True) for n in CASES]
-    jobs = [Job(f"{v.name} / {e}", run_engine, (e, v), expected_wall(v, e), (v.name, e))
-            for v in variants for e in engines]
-    done = run_jobs(jobs)  # the one pool; a failed job raises once all have ended
-    for job in jobs:
-        if done[job].error is not None:
-            raise done[job].error
-    return variants, {job.key: done[job].value for job in jobs}
+    return get_runs(_to_run(columns, gate_phases), list(engines), True, None)
 
 
-def _crosscheck(v: Case, pair: dict[str, EngineRun]) -> list[str]:
-    first, *others = [e for e in default_engines() if e in pair]
-    failed = [c for o in others for c in check_runs(v, pair[first], pair[o]) if not c.passed]
-    return [f"{v.name}: {c.observable} {c.error:.2e} > {c.tolerance:.1e}" for c in failed]
+def _number(x: Any) -> str:
+    return x if isinstance(x, str) else f"{x:.2e}"  # a stored row's error may be "inf"
 
 
-def baseline() -> dict:
-    """Run CASES unfaulted in both engines, store the runs (BASELINE_DIR) and cross-check them."""
-    variants, runs = _run_cases(list(default_engines()))
-    out: dict[str, list[str]] = {"crosscheck": []}
-    for v in variants:
-        pair = {e: runs[(v.name, e)] for e in default_engines()}
-        write_run(Path(BASELINE_DIR) / f"{v.name}.h5", pair, case_name=v.name, case_hash=v.file_hash,
-                  param_hash=v.params.digest())
-        out["crosscheck"] += _crosscheck(v, pair)
+def _failures(got: RunSet, case: str) -> list[str]:
+    """'ENGINE: run failed: …' for each engine whose run of `case` failed."""
+    return [f"{label.split(' / ', 1)[1]}: run failed: {text}" for label, text in got.failures.items()
+            if label.split(" / ", 1)[0] == case]
+
+
+def _crosscheck(case: Case, pair: Mapping[str, EngineRun]) -> list[str]:
+    """The failing cross-check rows of one column: a stand-alone case's `[compare]` rows, a
+    sequence's rows of each chained phase ('PHASE: …')."""
+    if case.phases:
+        return [f"{r['case'].split('/', 1)[1]}: {r['observable']} {_number(r['error'])} > {r['tolerance']:.1e}"
+                for r in mission_checks(case, True, dict(pair)) if not r["pass"]]
+    return [f"{r.observable} {r.error:.2e} > {r.tolerance:.1e}" for r in case_rows(case, True, pair) if not r.passed]
+
+
+def _gate(name: str, engine: str, run_: EngineRun) -> list[str]:
+    """'ENGINE: what moved' for a run of stand-alone case `name` that left its golden."""
+    v = load_case(name).variant(True)
+    g = compare_with_golden(v, run_, read_golden(golden_path(v.name, engine), engine))
+    if g.unchanged:
+        return []
+    moved = sorted(g.moved, key=lambda m: -m.ratio)
+    parts = (["inputs changed"] if g.inputs_changed else []) + g.structure[:1] \
+        + [f"{m.observable} {m.ratio:.3g}×" for m in moved[:GATE_NAMED]] \
+        + ([f"{len(moved) - GATE_NAMED} more observables"] if len(moved) > GATE_NAMED else []) \
+        + [f"more {w.describe()}" for w in g.more_work]
+    return [f"{engine}: " + ", ".join(parts)]
+
+
+def _gate_rows(got: RunSet, case: Case, engines: Sequence[str]) -> list[str]:
+    """The gate cell of one column: each engine's run against its golden; a sequence's, its
+    phases' stand-alone runs ('PHASE/ENGINE: …')."""
+    if case.phases:
+        return [f"{phase}/{row}" for phase in case.variant(True).phases
+                for row in _gate_rows(got, load_case(sibling_case(phase, Path(case.path))), engines)]
+    runs = got.runs.get(case.name, {})
+    return _failures(got, case.name) + [row for e in engines if e in runs for row in _gate(case.name, e, runs[e])]
+
+
+def _cells(got: RunSet, columns: Sequence[Case], engines: Sequence[str],
+           others: Mapping[str, Mapping[str, EngineRun]]) -> dict[str, dict[str, list[str]]]:
+    """Per column, the failing rows of each per-case check.  `others`: per case, the runs of
+    the engines not re-run here (the baseline), paired with the new ones."""
+    out = {}
+    for case in columns:
+        runs = got.runs.get(case.name, {})
+        compared = case.phases or case.variant(True).compare
+        cross = _failures(got, case.name) if compared else []
+        if len(runs) == len(engines):
+            cross += _crosscheck(case, {**others.get(case.name, {}), **runs})
+        out[case.name] = {"crosscheck": cross, "gate": _gate_rows(got, case, engines)}
     return out
 
 
-def probe(item: Injected) -> dict:
-    """Run the fault's engines on CASES in this (faulted) tree and apply every check."""
+def _walls(got: RunSet) -> dict[str, dict[str, float]]:
+    out: dict[str, dict[str, float]] = {}
+    for (case, engine), wall in got.wall_s.items():
+        out.setdefault(case, {})[engine] = round(wall, 1)
+    return out
+
+
+def baseline(cases: Sequence[str]) -> dict:
+    """Run `cases` unfaulted in both engines, store the runs (BASELINE_DIR) and check them
+    (cross-check, and the gate of the stand-alone ones)."""
+    engines = list(default_engines())
+    columns = [load_case(n) for n in cases]
+    got = _run_cases(columns, engines, gate_phases=False)
+    for case in columns:
+        pair = got.runs.get(case.name, {})
+        if len(pair) == len(engines):
+            write_run(Path(BASELINE_DIR) / f"{case.name}.h5", pair, case_name=case.name, case_hash=case.file_hash,
+                      param_hash=case.params.digest())
+    cells = _cells(got, columns, engines, {})
+    for case in columns:  # a sequence's gate is its phases': their own columns when asked for
+        if case.phases:
+            cells[case.name]["gate"] = []
+    return {"cases": cells, "runs_wall_s": _walls(got)}
+
+
+def probe(item: Injected, cases: Sequence[str]) -> dict:
+    """Run the fault's engines on `cases` in this (faulted) tree and apply every check."""
     engines = [item.layer] if item.layer in plugins() else list(default_engines())
-    variants, runs = _run_cases(engines)
-    out: dict[str, list[str]] = {k: [] for k in CHECKS}
-    for v in variants:
-        new = {e: runs[(v.name, e)] for e in engines}
-        for e, r in new.items():
-            g = compare_with_golden(v, r, read_golden(golden_path(v.name, e), e))
-            if not g.unchanged:
-                parts = (["inputs changed"] if g.inputs_changed else []) + g.structure[:1] + [m.observable for m in g.moved] \
-                    + [f"more {w.describe()}" for w in g.more_work]
-                out["gate"].append(f"{v.name}/{e}: " + ", ".join(parts))
-        # one engine faulted: the other engine's unfaulted baseline run of the same case
-        pair = new if len(new) == 2 else {**read_run(Path(BASELINE_DIR) / f"{v.name}.h5")[0], **new}
-        out["crosscheck"] += _crosscheck(v, pair)
+    columns = [load_case(n) for n in cases]
+    got = _run_cases(columns, engines, gate_phases=True)
+    others = {}
+    if len(engines) < len(default_engines()):  # one engine faulted: the others' baseline runs
+        others = {c.name: {e: r for e, r in read_run(Path(BASELINE_DIR) / f"{c.name}.h5")[0].items()
+                           if e not in engines} for c in columns}
+    out: dict[str, Any] = {"cases": _cells(got, columns, engines, others), "engines": engines,
+                           "runs_wall_s": _walls(got)}
     reached = set(engines) if item.layer in plugins() else set(plugins())
+    out["rigid"] = []
     for name in with_capability("rigid_checks"):  # a checker of an engine the fault reaches
         if plugin(name).checks_engine not in reached:
             continue
