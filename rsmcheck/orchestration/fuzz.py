@@ -5,7 +5,7 @@
 N scenarios (rsmcheck.orchestration.fuzz_scenarios: drawn from fuzz_ranges.toml, each an
 ordinary case file under DIR/scenarios/) are each run by both engines twice: at the
 scenario's resolution, and refined in space and time by each plug-in's `finer_options`
-(the reference: two more eigenmodes per link, rtol/10, h ≤ Δt/2; Exudyn: twice the
+(the reference: two more eigenmodes per link, rtol/10, h ≤ Δt/2; Exudyn: 1.5 times the
 elements, half the step).  For every compared observable (max over samples and
 components, `compare.difference`):
 
