@@ -48,6 +48,7 @@ from rsmcheck.orchestration.faults import CASE_CHECKS, cell_letters
 from rsmcheck.orchestration.gate import golden_path, goldens_dir, read_golden
 from rsmcheck.orchestration.targets import TARGETS, read_targets
 from rsmcheck.report import paper
+from rsmcheck.report.fuzz_section import fuzz_section
 from rsmcheck.report.plots import colour, comparison_figure, run_marks, simple_figure
 from rsmcheck.core.store import EngineRun, machine_text, read_run, same_machine, write_text
 
@@ -355,6 +356,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
     dep_head, dep_rows = departures_table()
     bench = speed_sections(page, _stored_json(data_dir, "bench_*.json"))
     faults = next((doc for _, doc in _stored_json(data_dir, "faults.json")), None)
+    fuzz = fuzz_section(page, next((doc for _, doc in _stored_json(data_dir, "fuzz.json")), None))
     html_text = _environment().get_template("page.html.j2").render(
         prov=v.get("provenance", {}), rows=rows, summary=verdict_summary(rows), n_fail=sum(not r.passed for r in rows),
         kinds=sorted({r.kind for r in rows}), missing_goldens=missing_goldens, missions=missions, cases=cases,
@@ -362,7 +364,7 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
         rigid=[{"label": plugins()[n].label if n in plugins() else n, "checks": c} for n, c in v.get("rigid", {}).items()],
         modes=st.modes, mode_engines=_mode_engines(st.modes),
         studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
-        faults=faults, fault_list=fault_rows(faults) if faults else [], fault_matrix=fault_matrix(faults),
+        fuzz=fuzz, faults=faults, fault_list=fault_rows(faults) if faults else [], fault_matrix=fault_matrix(faults),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
         plotly_js=plotly.offline.get_plotlyjs(), short=st.short)
     return write_text(out, html_text)
