@@ -3,8 +3,8 @@ file:// with every host name unresolvable, so that what the pages show comes fro
 site itself.
 
 * the start page has its title and the picture;
-* the notation page's equations are all rendered by the site's own KaTeX: as many rendered
-  equations as docs/notation.md has, none left as TeX, none in error;
+* the equations of the notation and the physics pages are all rendered by the site's own
+  KaTeX: as many rendered equations as the page's source has, none left as TeX, none in error;
 * the search works from file:// (Material's offline plugin): a query finds the notation page.
 
 Where Chromium is missing the tests are skipped, except when RSMCHECK_REQUIRE_BROWSER=1
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-NOTATION = Path(__file__).resolve().parents[2] / "docs" / "notation.md"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--no-first-run",
          "--virtual-time-budget=10000", "--host-resolver-rules=MAP * ~NOTFOUND"]
 
@@ -48,12 +48,13 @@ def article(page_dom: str) -> str:
     return re.search(r'<article class="md-content__inner[^>]*>(.*?)</article>', page_dom, re.S).group(1)
 
 
-def equations_in_source() -> tuple[int, int]:
-    """(display, inline) equations of docs/notation.md: $$ … $$ blocks, $ … $ on one line."""
-    text = NOTATION.read_text(encoding="utf-8")
-    blocks = re.findall(r"^\$\$\n.*?^\$\$$", text, re.M | re.S)
-    prose = re.sub(r"^\$\$\n.*?^\$\$$", "", text, flags=re.M | re.S)
-    return len(blocks), len(re.findall(r"\$[^$\n]+\$", prose))
+def equations_in_source(name: str) -> tuple[int, int]:
+    """(display, inline) equations of docs/NAME.md: $$ … $$ spans (over one line or more),
+    then $ … $ on one line."""
+    text = (DOCS / f"{name}.md").read_text(encoding="utf-8")
+    display = re.findall(r"\$\$.+?\$\$", text, re.S)
+    prose = re.sub(r"\$\$.+?\$\$", "", text, flags=re.S)
+    return len(display), len(re.findall(r"\$[^$\n]+\$", prose))
 
 
 def test_the_start_page_has_its_title_and_the_picture(built):
@@ -67,10 +68,11 @@ def test_the_start_page_has_its_title_and_the_picture(built):
         assert f'href="{target}"' in content, target
 
 
-def test_the_notation_page_renders_every_equation_offline(built):
-    display, inline = equations_in_source()
+@pytest.mark.parametrize("name", ["notation", "physics"])
+def test_the_page_renders_every_equation_offline(built, name):
+    display, inline = equations_in_source(name)
     assert display >= 10 and inline >= 20, (display, inline)
-    content = article(dom(built.folder / "notation.html"))
+    content = article(dom(built.folder / f"{name}.html"))
     errors = re.findall(r'class="arithmatex math-error" title="([^"]*)"', content)
     assert not errors, errors  # what KaTeX could not read (docs/javascripts/render-math.js)
     assert content.count('<span class="katex-display">') == display
