@@ -203,3 +203,53 @@ def summary(doc: Mapping[str, Any]) -> str:
 
 def write_document(doc: Mapping[str, Any], out_dir: Path) -> Path:
     return write_json(out_dir / "fuzz.json", doc)
+
+
+def combine(parts: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """One campaign's document from documents of its consecutive parts (`--first`): the
+    same seed, engines and criterion; the scenarios in order, the counts and wall times
+    summed.  A part that does not continue the one before is an InputError."""
+    if not parts:
+        raise InputError("fuzz combine", "parts", "no document given")
+    first = parts[0]
+    out = dict(first, scenarios=[], passed=0, failed=0, wall_s=0.0, n=0, parts=[])
+    for i, p in enumerate(parts):
+        for key in ("seed", "engines", "criterion", "finer"):
+            if p.get(key) != first.get(key):
+                raise InputError("fuzz combine", f"part {i + 1}.{key}", f"{p.get(key)!r} differs from part 1's")
+        if p.get("first") != first["first"] + out["n"]:
+            raise InputError("fuzz combine", f"part {i + 1}.first",
+                             f"starts at scenario {p.get('first')}, not at {first['first'] + out['n']}")
+        out["scenarios"] += p["scenarios"]
+        out["n"] += p["n"]
+        out["passed"] += p["passed"]
+        out["failed"] += p["failed"]
+        out["wall_s"] = round(out["wall_s"] + p["wall_s"], 1)
+        out["parts"].append({k: p.get(k) for k in ("first", "n", "wall_s", "workers", "commit")})
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """`python -m rsmcheck.orchestration.fuzz combine OUT PART…`: one document from parts."""
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.fuzz", description=main.__doc__)
+    ap.add_argument("command", choices=["combine"])
+    ap.add_argument("out")
+    ap.add_argument("parts", nargs="+")
+    args = ap.parse_args(argv)
+    parts = []
+    for path in args.parts:
+        try:
+            parts.append(json.loads(Path(path).read_text()))
+        except (OSError, ValueError) as exc:
+            raise SystemExit(f"{path}: not a fuzz document ({exc})") from None
+    doc = combine(parts)
+    write_json(args.out, doc)
+    print(f"wrote {args.out}: {doc['n']} scenarios, {doc['passed']} passed, {doc['failed']} failed")
+    return 0 if doc["failed"] == 0 else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from rsmcheck.core.cases import load_case
+from rsmcheck.core.errors import InputError
 from rsmcheck.core.params import Params
 from rsmcheck.core.store import EngineRun
 from rsmcheck.driver.initial import build_initial
@@ -153,3 +154,19 @@ def test_the_floor_is_declared_for_every_compared_observable():
     closed = next(s for s in DRAWS if s.chain == "closed" and s.orbit)
     assert all(math.isfinite(absolute[n]) and absolute[n] > 0 for n in fuzz.observables(closed))
     assert absolute["why"] and declared()["criterion"]["factor_why"] and declared()["criterion"]["relative_why"]
+
+
+def _part(first: int, n: int, passed: int) -> dict:
+    return {"format": fuzz.FORMAT, "seed": 4, "first": first, "n": n, "engines": ["reference", "exudyn"],
+            "criterion": {"factor": 3.0}, "finer": {}, "passed": passed, "failed": n - passed, "wall_s": 10.0,
+            "workers": 2, "commit": "x", "scenarios": [{"index": i} for i in range(first, first + n)]}
+
+
+def test_parts_of_a_campaign_combine_in_order_and_only_in_order():
+    doc = fuzz.combine([_part(0, 3, 3), _part(3, 2, 1)])
+    assert [s["index"] for s in doc["scenarios"]] == [0, 1, 2, 3, 4]
+    assert (doc["n"], doc["passed"], doc["failed"], doc["wall_s"]) == (5, 4, 1, 20.0) and len(doc["parts"]) == 2
+    with pytest.raises(InputError, match="part 2.first"):
+        fuzz.combine([_part(0, 3, 3), _part(4, 2, 2)])  # scenario 3 missing
+    with pytest.raises(InputError, match="part 2.seed"):
+        fuzz.combine([_part(0, 3, 3), {**_part(3, 2, 2), "seed": 5}])
