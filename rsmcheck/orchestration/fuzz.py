@@ -30,6 +30,8 @@ scenario, its rows and the wall time.  Exit 0 when every scenario passes, 1 when
 
 from __future__ import annotations
 
+import argparse
+import json
 import math
 import time
 from dataclasses import asdict, dataclass, replace
@@ -231,9 +233,6 @@ def combine(parts: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`python -m rsmcheck.orchestration.fuzz combine OUT PART…`: one document from parts."""
-    import argparse
-    import json
-
     ap = argparse.ArgumentParser(prog="python -m rsmcheck.orchestration.fuzz", description=main.__doc__)
     ap.add_argument("command", choices=["combine"])
     ap.add_argument("out")

@@ -17,7 +17,11 @@ import pytest
 from reference_model.beam_modes import PP
 from reference_model.build import Configuration, ReferenceModel, terminal_basis
 from reference_model.model_arrays import N_INPUTS
+from rsmcheck.core.cases import load_case
 from rsmcheck.core.params import Params
+from rsmcheck.orchestration.compare import difference
+from rsmcheck.orchestration.fuzz_scenarios import case_text, draw
+from rsmcheck.orchestration.runs import run_engine
 
 PARAMS = Params()
 
@@ -129,3 +133,27 @@ def test_slaved_shapes_keep_their_mass():
     rotor_arm = Mz[lay.ny:lay.ny + 3, 3:6]  # arm 1's rotors with its joints
     assert np.abs(rotor_arm).max() > 0.0
     assert np.abs(Mz[lay.ny:lay.ny + 3, lay.ny + 3:]).max() == 0.0  # not with arm 2's rotors
+
+
+# A held target swinging fast: the randomized cross-check (docs/fuzz.md) found the slaved
+# shapes far from the explicit ones there, while its criterion passed (the reference's own
+# refinement, two more eigenmodes, moved nearly as far).  Scenario 1 of seed 2026: arm 2
+# holds the target, a torque step, in orbit, 1.9 s.
+SLAVED_HELD_TARGET = (
+    "Known defect, measured: on fuzz scenario 2026/1 the slaved shapes leave the joint angles 2.27e-2 rad "
+    "from Exudyn, the explicit shapes 2.32e-5 (fuzz 2026/71, closed chain: 5.27e-2 against 1.22e-5; more "
+    "eigenmodes close it slowly, 2.95e-2 at 4 and 2.03e-2 at 6); with nothing held (2026/49) both 4.1e-4. "
+    "The slaving is wrong, not merely approximate, where a held target moves fast: under investigation."
+)
+
+
+@pytest.mark.xfail(strict=True, reason=SLAVED_HELD_TARGET)
+def test_slaved_shapes_follow_the_explicit_ones_with_a_held_target_swinging(tmp_path):
+    s = draw(2026, 1)
+    path = tmp_path / f"{s.name}.toml"
+    path.write_text(case_text(s))
+    case = load_case(path)
+    slaved = run_engine("reference", case, {"static_modes": "condensed"})
+    explicit = run_engine("reference", case, {"static_modes": "explicit"})
+    # the explicit shapes' own distance to Exudyn is 2.3e-5 rad: the slaved ones within 1e-4
+    assert difference(slaved, explicit, "joint_angles")[0] < 1e-4
