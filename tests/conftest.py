@@ -19,14 +19,16 @@ last, so that the main process meanwhile runs everything else.
 from __future__ import annotations
 
 import dataclasses
+import json
 import multiprocessing
+import os
 import shutil
 import site
 import tempfile
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import pytest
 
@@ -162,3 +164,34 @@ def run_pool(request) -> Callable[..., Any]:
     if POOL not in stash:  # a test that declared no engine_runs: runs on demand
         stash[POOL] = RunPool()
     return stash[POOL]
+
+
+@pytest.fixture
+def chromium() -> str:
+    """Debian's headless Chromium for the browser tests: skipped where it is missing, except
+    when RSMCHECK_REQUIRE_BROWSER=1 (`.ci/run` sets it and installs Chromium): then failed."""
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        if os.environ.get("RSMCHECK_REQUIRE_BROWSER") == "1":
+            pytest.fail("Chromium is required (RSMCHECK_REQUIRE_BROWSER=1) but not installed: apt-get install chromium")
+        pytest.skip("Chromium not installed (apt-get install chromium); .ci/run installs it")
+    return exe
+
+
+@pytest.fixture
+def render_stored(tmp_path) -> Callable[[Mapping[str, Any]], str]:
+    """The report page of a stored folder without runs (free_drift's section only), with
+    `documents` (file name → JSON document) as its docs/data: the page's text."""
+    def render_page(documents: Mapping[str, Any]) -> str:
+        from rsmcheck.report.build import render
+
+        (tmp_path / "verdict.json").write_text(json.dumps({"checks": [], "mission": [], "gate": [], "rigid": {},
+                                                           "provenance": {"short": True}}))
+        data = tmp_path / "data"
+        data.mkdir(exist_ok=True)
+        for old in data.glob("*.json"):
+            old.unlink()
+        for name, doc in documents.items():
+            (data / name).write_text(json.dumps(doc))
+        return render(tmp_path, tmp_path / "page.html", ["free_drift"], data_dir=data).read_text(encoding="utf-8")
+    return render_page

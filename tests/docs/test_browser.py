@@ -13,9 +13,7 @@ Where Chromium is missing the tests are skipped, except when RSMCHECK_REQUIRE_BR
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -26,18 +24,9 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--
          "--virtual-time-budget=10000", "--host-resolver-rules=MAP * ~NOTFOUND"]
 
 
-def _chromium() -> str:
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    if exe is None:
-        if os.environ.get("RSMCHECK_REQUIRE_BROWSER") == "1":
-            pytest.fail("Chromium is required (RSMCHECK_REQUIRE_BROWSER=1) but not installed: apt-get install chromium")
-        pytest.skip("Chromium not installed (apt-get install chromium); .ci/run installs it")
-    return exe
-
-
-def dom(page: Path, query: str = "") -> str:
+def dom(chromium: str, page: Path, query: str = "") -> str:
     """The page's DOM after its scripts ran (`--dump-dom`)."""
-    proc = subprocess.run([_chromium(), *FLAGS, "--dump-dom", page.as_uri() + query],
+    proc = subprocess.run([chromium, *FLAGS, "--dump-dom", page.as_uri() + query],
                           capture_output=True, text=True, timeout=120, check=False)
     assert "<body" in proc.stdout, f"Chromium returned no page: {proc.stderr[-500:]}"
     return proc.stdout
@@ -57,8 +46,8 @@ def equations_in_source(name: str) -> tuple[int, int]:
     return len(display), len(re.findall(r"\$[^$\n]+\$", prose))
 
 
-def test_the_start_page_has_its_title_and_the_picture(built):
-    page = dom(built.folder / "index.html")
+def test_the_start_page_has_its_title_and_the_picture(built, chromium):
+    page = dom(chromium, built.folder / "index.html")
     assert re.search(r"<title>rsmcheck</title>", page)
     assert re.search(r'<h1 id="rsmcheck">rsmcheck', page)
     content = article(page)
@@ -69,10 +58,10 @@ def test_the_start_page_has_its_title_and_the_picture(built):
 
 
 @pytest.mark.parametrize("name", ["notation", "physics"])
-def test_the_page_renders_every_equation_offline(built, name):
+def test_the_page_renders_every_equation_offline(built, name, chromium):
     display, inline = equations_in_source(name)
     assert display >= 10 and inline >= 20, (display, inline)
-    content = article(dom(built.folder / f"{name}.html"))
+    content = article(dom(chromium, built.folder / f"{name}.html"))
     errors = re.findall(r'class="arithmatex math-error" title="([^"]*)"', content)
     assert not errors, errors  # what KaTeX could not read (docs/javascripts/render-math.js)
     assert content.count('<span class="katex-display">') == display
@@ -84,8 +73,8 @@ def test_the_page_renders_every_equation_offline(built, name):
         assert raw not in text, f"raw TeX {raw!r} left on the page"
 
 
-def test_the_search_works_from_file_urls(built):
-    page = dom(built.folder / "index.html", "?q=Baumgarte")
+def test_the_search_works_from_file_urls(built, chromium):
+    page = dom(chromium, built.folder / "index.html", "?q=Baumgarte")
     results = re.findall(r'<a href="([^"]+)" class="md-search-result__link"', page)
     assert any(r.endswith("/notation.html") for r in results), results
     assert "<mark>Baumgarte</mark>" in page

@@ -8,24 +8,12 @@ RSMCHECK_REQUIRE_BROWSER=1 (`.ci/run` sets it and installs Chromium): then it fa
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
-import pytest
 
 SCREENSHOT = Path(__file__).resolve().parents[2] / "out" / "browser-test" / "report-top.png"
-
-
-def _chromium() -> str:
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    if exe is None:
-        if os.environ.get("RSMCHECK_REQUIRE_BROWSER") == "1":
-            pytest.fail("Chromium is required (RSMCHECK_REQUIRE_BROWSER=1) but not installed: apt-get install chromium")
-        pytest.skip("Chromium not installed (apt-get install chromium); .ci/run installs it")
-    return exe
 
 
 def _run(args: list[str], timeout: float = 240) -> subprocess.CompletedProcess:
@@ -36,9 +24,8 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--
          "--virtual-time-budget=60000"]
 
 
-def test_the_page_draws_every_figure_without_a_javascript_error(rendered):
-    exe = _chromium()
-    proc = _run([exe, *FLAGS, "--dump-dom", rendered.page.as_uri() + "#render-all"])
+def test_the_page_draws_every_figure_without_a_javascript_error(rendered, chromium):
+    proc = _run([chromium, *FLAGS, "--dump-dom", rendered.page.as_uri() + "#render-all"])
     dom = proc.stdout
     body = re.search(r"<body([^>]*)>", dom)
     assert body, f"Chromium returned no page: {proc.stderr[-500:]}"
@@ -52,9 +39,8 @@ def test_the_page_draws_every_figure_without_a_javascript_error(rendered):
     assert dom.count('class="main-svg"') >= int(attrs["figures"])  # plotly drew an SVG for each
 
 
-def test_a_screenshot_of_the_top_of_the_page(rendered):
-    exe = _chromium()
+def test_a_screenshot_of_the_top_of_the_page(rendered, chromium):
     SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
     SCREENSHOT.unlink(missing_ok=True)
-    proc = _run([exe, *FLAGS, "--window-size=1300,1100", f"--screenshot={SCREENSHOT}", rendered.page.as_uri()])
+    proc = _run([chromium, *FLAGS, "--window-size=1300,1100", f"--screenshot={SCREENSHOT}", rendered.page.as_uri()])
     assert SCREENSHOT.is_file() and SCREENSHOT.stat().st_size > 20_000, proc.stderr[-500:]

@@ -3,9 +3,7 @@ docs/data/fuzz.json (the campaign itself: tests/crosscheck/test_fuzz_campaign.py
 
 from __future__ import annotations
 
-import json
-
-from rsmcheck.report.build import Page, render
+from rsmcheck.report.build import Page
 from rsmcheck.report.fuzz_section import fuzz_section
 
 
@@ -41,19 +39,12 @@ def test_every_row_is_a_point_coloured_by_its_chain():
     assert fuzz_section(Page(), None) is None and fuzz_section(Page(), {"scenarios": []}) is None
 
 
-def test_the_page_lists_the_failing_scenario_with_its_reproduction(tmp_path):
-    (tmp_path / "verdict.json").write_text(json.dumps({"checks": [], "mission": [], "gate": [], "rigid": {},
-                                                       "provenance": {"short": True}}))
-    data = tmp_path / "data"
-    data.mkdir()
-    (data / "fuzz.json").write_text(json.dumps(DOC))
-    page = render(tmp_path, tmp_path / "page.html", ["free_drift"], data_dir=data).read_text(encoding="utf-8")
+def test_the_page_lists_the_failing_scenario_with_its_reproduction(render_stored):
+    page = render_stored({"fuzz.json": DOC})
     section = page[page.index('<section id="fuzz">'):]
     section = section[:section.index("</section>")]
     assert "<b>2 passed, 1 failed</b>" in section and "1 free, 1 open, 1 closed" in section
     assert "rsmcheck check out/fuzz/failures/fuzz_5_1.toml" in section
     assert section.count("<tr>") == 2  # the head and the one failing scenario
     # without a stored campaign the section says how to make one
-    (data / "fuzz.json").unlink()
-    page = render(tmp_path, tmp_path / "page.html", ["free_drift"], data_dir=data).read_text(encoding="utf-8")
-    assert "No stored campaign" in page
+    assert "No stored campaign" in render_stored({})

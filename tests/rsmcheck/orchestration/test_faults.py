@@ -214,8 +214,8 @@ SYNTHETIC = {"commit": "abc", "cases": ["capture", "closed_squeeze", "mission"],
                             "mission": {"crosscheck": ["p3_com_alignment: z 1 > 0.1"], "gate": []}}}]}
 
 
-def test_the_report_draws_the_matrix_from_a_stored_document(tmp_path):
-    from rsmcheck.report.build import fault_matrix, render
+def test_the_report_draws_the_matrix_from_a_stored_document(render_stored):
+    from rsmcheck.report.build import fault_matrix
 
     m = fault_matrix(SYNTHETIC)
     assert m["cases"] == SYNTHETIC["cases"] and m["checks"] == ["rigid", "analytic"]
@@ -228,12 +228,7 @@ def test_the_report_draws_the_matrix_from_a_stored_document(tmp_path):
     assert m["totals"] == [1, 1, 0, 0, 1]  # the control's catch is not counted
     assert fault_matrix({"faults": [{"name": "old", "crosscheck": [], "caught_by": []}]}) is None
     # the page: a tiny stored folder (no runs), the document as docs/data/faults.json
-    (tmp_path / "verdict.json").write_text(json.dumps({"checks": [], "mission": [], "gate": [], "rigid": {},
-                                                       "provenance": {"short": True}}))
-    data = tmp_path / "data"
-    data.mkdir()
-    (data / "faults.json").write_text(json.dumps(SYNTHETIC))
-    page = render(tmp_path, tmp_path / "page.html", ["free_drift"], data_dir=data).read_text(encoding="utf-8")
+    page = render_stored({"faults.json": SYNTHETIC})
     section = page[page.index('<section id="faults">'):]
     section = section[:section.index("</section>")]
     table = section[section.index('<table class="faultmatrix">'):section.index("</table>")]
