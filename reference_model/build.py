@@ -49,7 +49,7 @@ def static_shapes(value) -> str:
 
 @dataclass(frozen=True)
 class Layout:
-    """Index ranges of the ODE state x = [Y*, Ẏ*, r_O, v_O, m_used] (model_arrays module doc)."""
+    """Index ranges of the ODE state x = [Y*, Ẏ*, r_O, v_O, m_used, e] (model_arrays module doc)."""
 
     nq: int
     n_modes: tuple[int, ...]
@@ -65,7 +65,7 @@ class Layout:
 
     @property
     def nx(self) -> int:
-        return 2 * self.ns + 5
+        return 2 * self.ns + 7
 
     # position blocks
     @property
@@ -104,6 +104,12 @@ class Layout:
     @property
     def m_used(self) -> int:
         return 2 * self.ns + 4
+
+    @property
+    def stop_deflection(self) -> slice:
+        """e of both arms: the terminal link's deflection under its wrist stop, a state with
+        the static shapes condensed (condense.py), zero otherwise."""
+        return slice(2 * self.ns + 5, 2 * self.ns + 7)
 
     def modes(self, link: int) -> slice:
         """Amplitudes of link 0..5 inside q."""
@@ -226,12 +232,14 @@ class ReferenceModel:
             phi_bar=stack("phi_bar"), phi_x=stack("phi_x"), m_ff=stack("m_ff"), k_ff=stack("k_ff"),
             phi_tip=phi_tip, slope_0=stack("slope_0"), slope_L=stack("slope_L"),
             phi_g=stack("phi_gauss"), x_g=ref.x_gauss.copy(), w_g=ref.w_gauss.copy(), mount=mount,
-            order=order, first=first, sl_T=np.zeros((2, 2, 2, condense.N_ARM, condense.N_COLS)),
-            sl_c=np.zeros((2, 2, condense.N_ARM)), sl_dw=np.zeros((2, 2, condense.N_ARM)),
-            sl_cols=np.zeros((2, 2, condense.N_COLS), dtype=np.int64), sl_ncol=np.zeros((2, 2), dtype=np.int64))
+            order=order, first=first, sl_T=np.zeros((2, 2, condense.N_ARM, condense.N_COLS)),
+            sl_g=np.zeros((2, 2, condense.N_ARM)), sl_h=np.zeros((2, 2)), sl_kg=np.zeros((2, 2, condense.N_ARM)),
+            sl_ce=np.zeros((2, 2)), sl_dw=np.zeros((2, 2, condense.N_ARM)),
+            sl_cols=np.zeros((2, condense.N_COLS), dtype=np.int64), sl_ncol=np.zeros(2, dtype=np.int64))
         if self.condensed:
-            T, c, dw, cols, ncol = condense.slaving_tables(arrays)
-            arrays = arrays._replace(sl_T=T, sl_c=c, sl_dw=dw, sl_cols=cols, sl_ncol=ncol)
+            T, g, h, kg, ce, dw, cols, ncol = condense.slaving_tables(arrays)
+            arrays = arrays._replace(sl_T=T, sl_g=g, sl_h=h, sl_kg=kg, sl_ce=ce, sl_dw=dw, sl_cols=cols,
+                                     sl_ncol=ncol)
         return arrays
 
     @property
@@ -264,10 +272,12 @@ class ReferenceModel:
     def rhs(self, x: np.ndarray, u: np.ndarray, cfg: Configuration) -> np.ndarray:
         return ode.rhs(np.asarray(x, float), np.asarray(u, float), *self.core_args(cfg))
 
-    def complete(self, x: np.ndarray, cfg: Configuration) -> np.ndarray:
-        """x with the condensed static shapes' slots filled from the rest of the state
-        (condense.condense; a copy of x when they are not condensed)."""
-        xc = condense.condense(np.asarray(x, float), *self.core_args(cfg))[0]
+    def complete(self, x: np.ndarray, cfg: Configuration, settle: bool = False) -> np.ndarray:
+        """x with the condensed static shapes' slots filled from the rest of the state and
+        the stop deflections in their admissible range (condense.condense; a copy of x when
+        the shapes are not condensed); `settle`: the stop deflections where the stop's law
+        holds with ė = 0, for a start."""
+        xc = condense.condense(np.asarray(x, float), *self.core_args(cfg), settle)[0]
         return xc if self.condensed else np.array(xc, float)
 
     @property
@@ -279,7 +289,7 @@ class ReferenceModel:
     def slaving(self, x: np.ndarray, cfg: Configuration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`condense.condense` as dense arrays: the completed state, T (12 × n_z: ∂a_s/∂z,
         z = [Y, θ_m]) and the q-index of each of its rows (−1: no shape)."""
-        xc, Tc, cols, ncol, idx = condense.condense(np.asarray(x, float), *self.core_args(cfg))
+        xc, Tc, cols, ncol, idx, *_ = condense.condense(np.asarray(x, float), *self.core_args(cfg), False)
         T = np.zeros((2 * condense.N_ARM, self.layout.ny + 6))
         for k in range(2):
             T[condense.N_ARM * k:condense.N_ARM * (k + 1), cols[k, :ncol[k]]] = Tc[k, :, :ncol[k]]
@@ -393,10 +403,7 @@ class ReferenceModel:
         sc[S_WK] = 0.0
         sc[S_WC] = 0.0
         sc[S_WLAM] = 0.0
-        arrays = self.arrays._replace(sc=sc)
-        if self.condensed:  # the stop's spring is off: slave the shapes without it
-            T, c, dw, cols, ncol = condense.slaving_tables(arrays)
-            arrays = arrays._replace(sl_T=T, sl_c=c, sl_dw=dw, sl_cols=cols, sl_ncol=ncol)
+        arrays = self.arrays._replace(sc=sc)  # the stop off: its deflection e is 0
         reduce = system.assemble_reduced if self.condensed else system.assemble
         Mg, f, G, _, _, Bs, *_ = reduce(x, u, arrays, self.switches(cfg))
         ydd, Rc = solve.solve_constrained(Mg, f, G, Bs, arrays)
@@ -425,4 +432,4 @@ def initial_state(model: ReferenceModel, init: InitialConfiguration) -> tuple[np
     x[lay.r_O] = init.orbit_r
     x[lay.v_O] = init.orbit_v
     cfg = Configuration(grasp_on=init.grasp.copy(), rho_G=init.rho_G.copy(), basis=terminal_basis(init.grasp))
-    return model.complete(x, cfg), cfg
+    return model.complete(x, cfg, settle=True), cfg

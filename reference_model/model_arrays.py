@@ -15,8 +15,10 @@ q_m  = [x_B, y_B, θ_B, θ_J1..θ_J6, a_link1.., .., a_link6..]      (nq)   eq. 
 X_T  = [x_T, y_T, θ_T]                                             (3)
 θ_m  = six motor angles, relative to the parent end section       (6)
 Y    = [q_m, X_T] (ny = nq + 3),  Y* = [Y, θ_m] (ns = ny + 6)      eq. (7)
-ODE state x = [Y*, Ẏ*, r_O (2), v_O (2), m_used]: r_O, v_O are the co-moving reference
-point (docs/physics.md §5), m_used the propellant burnt.
+ODE state x = [Y*, Ẏ*, r_O (2), v_O (2), m_used, e (2)]: r_O, v_O are the co-moving
+reference point (docs/physics.md §5), m_used the propellant burnt, e the terminal links'
+deflection under the wrist stops with the static shapes condensed (condense.py; zero
+otherwise).
 
 Newtonian coordinates of a link (the X_m of eq. A.1): X_i = [R_i (2), θ_i, a_i (n_i)] —
 origin of the link frame (its proximal pin), frame angle, modal amplitudes.  A material
@@ -80,11 +82,12 @@ N_LINKS = 6
 #:   state by the springs' equilibrium, with their mass), 0: they are states;
 #:   order, first: elimination order and envelope of the mass matrix (`elimination_order`),
 #:   over the coordinates (with condensed shapes: z = [Y, θ_m] without them);
-#:   sl_T, sl_c, sl_dw, sl_cols, sl_ncol: the slaving of the condensed shapes per arm,
-#:   terminal basis and stop state (condense.slaving_tables).
+#:   sl_T, sl_g, sl_h, sl_kg, sl_ce, sl_dw, sl_cols, sl_ncol: the slaving of the condensed shapes per
+#:   arm and terminal basis (condense.slaving_tables).
 ModelArrays = namedtuple("ModelArrays", [
     "nq", "sc", "nm", "ne", "cond", "mo", "phi_bar", "phi_x", "m_ff", "k_ff", "phi_tip", "slope_0", "slope_L",
-    "phi_g", "x_g", "w_g", "mount", "order", "first", "sl_T", "sl_c", "sl_dw", "sl_cols", "sl_ncol"])
+    "phi_g", "x_g", "w_g", "mount", "order", "first", "sl_T", "sl_g", "sl_h", "sl_kg", "sl_ce", "sl_dw", "sl_cols",
+    "sl_ncol"])
 #: The switching part: basis[i] of each link, grasp_on[k], held points rho_G[k] (target frame).
 Switches = namedtuple("Switches", ["basis", "grasp_on", "rho_G"])
 

@@ -16,11 +16,12 @@ from reference_model.system import assemble, assemble_reduced
 def rhs(x, u, m, sw):
     """ẋ of the full ODE: eq. (7) with (11)–(12), the reference point and mass depletion.
     The slots of condensed static shapes (condense.py) get ẋ = 0: the engine refills them
-    from the rest of the state after every interval (`ReferenceModel.complete`)."""
+    from the rest of the state after every interval (`ReferenceModel.complete`); the stop
+    deflections e are states only then."""
     ny = m.nq + 3
     ns = ny + 6
     if m.cond:  # the static shapes slaved (condense.py): Ÿ and θ̈_m from one system
-        Mz, fz, Gz, phi, phid, Bs, uJ, tauw, aO = assemble_reduced(x, u, m, sw)
+        Mz, fz, Gz, phi, phid, Bs, uJ, tauw, aO, edot = assemble_reduced(x, u, m, sw)
         zdd, Rcl = solve_constrained(Mz, fz, Gz, Bs, m)
         ydd = zdd[:ny]
         thmdd = zdd[ny:]
@@ -34,7 +35,9 @@ def rhs(x, u, m, sw):
     dx[2 * ns:2 * ns + 2] = x[2 * ns + 2:2 * ns + 4]
     dx[2 * ns + 2:2 * ns + 4] = aO
     dx[2 * ns + 4] = u[U_THRUST] / m.sc[S_ISPG0]
+    dx[2 * ns + 5:2 * ns + 7] = 0.0
     if m.cond:  # condensed static shapes are not states: their slots stay as they are
+        dx[2 * ns + 5:2 * ns + 7] = edot  # the stop deflections e (condense.py)
         for i in range(m.nm.shape[0]):
             for a in range(m.ne[i], m.nm[i]):
                 dx[m.mo[i] + a] = 0.0

@@ -24,9 +24,7 @@ def elimination_order(nq, nm, mo, n_dynamic=None, rotors=False):
     With the static shapes slaved (condense.py) the matrix is M_z over z = [Y, θ_m]:
     n_dynamic[i] ≤ nm[i] are the leading shapes of link i that are coordinates (the
     others are left out of the order), `rotors` puts each arm's three rotors (rows ny +
-    3k + s) at the end of its block (the slaved shapes couple them with their arm), and
-    the target's rows get the full envelope (a wrist beyond its stop slaves the shapes to
-    θ_T too).
+    3k + s) at the end of its block (the slaved shapes couple them with their arm).
     """
     ny = nq + 3
     if n_dynamic is None:
@@ -54,9 +52,9 @@ def elimination_order(nq, nm, mo, n_dynamic=None, rotors=False):
         order[r] = d
         first[r] = 0
         r += 1
-    for d in range(3):  # the target is diagonal (coupled to everything when slaved)
+    for d in range(3):  # the target is diagonal
         order[r] = nq + d
-        first[r] = 0 if rotors else r
+        first[r] = r
         r += 1
     return order, first
 

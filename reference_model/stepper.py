@@ -40,6 +40,7 @@ ATOL_SCALE = {
     "orbit_r": 1e4,  # m (|r_O| ≈ 7e6 m)
     "orbit_v": 1e1,  # m/s
     "mass": 1.0,  # kg
+    "stop_deflection": 1.0,  # rad (it adds to the wrist angle one to one)
 }
 
 
@@ -54,6 +55,7 @@ def absolute_tolerance(layout: Layout, rtol: float) -> np.ndarray:
     s[lay.r_O] = ATOL_SCALE["orbit_r"]
     s[lay.v_O] = ATOL_SCALE["orbit_v"]
     s[lay.m_used] = ATOL_SCALE["mass"]
+    s[lay.stop_deflection] = ATOL_SCALE["stop_deflection"]
     return rtol * s
 
 

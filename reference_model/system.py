@@ -188,11 +188,13 @@ def _bistop(psi, psid, lim, k, lam):
 
 
 @njit(cache=True, inline="always")
-def _grasp_rows(f, q, qd, XT, XTd, kin, m, sw):
+def _grasp_rows(f, q, qd, XT, XTd, kin, m, sw, tauw_slaved):
     """Wrist bistops and the grasp constraints of eqs. (8)–(12), for the active grasps.
 
     Bistop (docs/physics.md §4.3): τ_w = bistop(ψ_w, ψ̇_w), +τ_w on the target, −τ_w on the
-    terminal link's distal section (generalised force −τ_w ∂(θ_3 + w_3'(L))/∂q).
+    terminal link's distal section (generalised force −τ_w ∂(θ_3 + w_3'(L))/∂q); with the
+    static shapes condensed, `tauw_slaved` (the stop's law through the terminal link's
+    deflection e, condense.py).
     Constraint:  φ_k = r_EE,k − (r_T + A(θ_T) ρ_G,k) = 0,  G = ∂φ/∂Y (eq. 8),
         B = −Ġ Ẏ = −c_EE − θ̇_T² A(θ_T) ρ_G (eq. 10),   B* = B − 2α φ̇ − β² φ (eq. 12).
     """
@@ -216,7 +218,10 @@ def _grasp_rows(f, q, qd, XT, XTd, kin, m, sw):
             continue
         i3 = 3 * k + 2
         b3 = sw.basis[i3]
-        tw = _bistop(psi_w[k], psid_w[k], sc[S_WLIM], sc[S_WK], sc[S_WLAM])
+        if m.cond:
+            tw = tauw_slaved[k]
+        else:
+            tw = _bistop(psi_w[k], psid_w[k], sc[S_WLIM], sc[S_WK], sc[S_WLAM])
         tauw[k] = tw
         f[nq + 2] += tw
         for col in range(nq):
@@ -263,11 +268,11 @@ def assemble(x, u, m, sw):
 @njit(cache=True)
 def assemble_reduced(x, u, m, sw):
     """The coupled system over z = [Y, θ_m] with the static shapes slaved (condense.py):
-    (M_z, f_z, G_z, φ, φ̇, B*, u_J, τ_w, a_O), M_z = Pᵀ blockdiag(M_g, B_m I) P, f_z = [f,
+    (M_z, f_z, G_z, φ, φ̇, B*, u_J, τ_w, a_O, ė), ė the rates of the stop deflections; M_z = Pᵀ blockdiag(M_g, B_m I) P, f_z = [f,
     B_m θ̈_m] of `assemble` (which holds Tᵀ f_s already), G_z = [G, 0]; rows and columns of
     the static shapes zero.  What `solve.solve_constrained` takes with the elimination order
     of a condensed model (its z̈: Ÿ, then θ̈_m)."""
-    Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO, T, cols, ncol, idx = _assemble(x, u, m, sw)
+    Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO, T, cols, ncol, idx, edot = _assemble(x, u, m, sw)
     ny = m.nq + 3
     Mz = reduced_mass(Mg, T, cols, ncol, idx, m)
     fz = np.empty(ny + 6)
@@ -276,14 +281,14 @@ def assemble_reduced(x, u, m, sw):
         fz[ny + j] = m.sc[S_BM] * thmdd[j]
     Gz = np.zeros((G.shape[0], ny + 6))
     Gz[:, :ny] = G
-    return Mz, fz, Gz, phi, phid, Bs, uJ, tauw, aO
+    return Mz, fz, Gz, phi, phid, Bs, uJ, tauw, aO, edot
 
 
 @njit(cache=True, inline="always")
 def _assemble(x, u, m, sw):
     """`assemble`, and the slaving of the static shapes (T, cols, ncol, idx of
     `condense.condense`)."""
-    x, T, cols, ncol, idx = condense(x, m, sw)
+    x, T, cols, ncol, idx, tauw_slaved, edot, fkv = condense(x, m, sw, False)
     nq = m.nq
     sc = m.sc
     ny = nq + 3
@@ -314,7 +319,11 @@ def _assemble(x, u, m, sw):
     _link_rows(Mg, f, q, qd, kin, rO, aunif, m, sw.basis)
     uJ, thmdd = _joint_rows(f, q, qd, thm, thmd, u, m, sw.basis)
     _target_rows(Mg, f, XT, rO, aunif, nq, sc)
-    G, phi, phid, Bs, tauw = _grasp_rows(f, q, qd, XT, XTd, kin, m, sw)
+    G, phi, phid, Bs, tauw = _grasp_rows(f, q, qd, XT, XTd, kin, m, sw, tauw_slaved)
+    for k in range(2):  # the Kelvin–Voigt force of the stop deflection's rate (condense.py)
+        for s in range(idx.shape[1]):
+            if idx[k, s] >= 0:
+                f[idx[k, s]] += fkv[k, s]
     project(f, thmdd, T, cols, ncol, idx, m)
 
     aO = athr.copy()
@@ -323,4 +332,4 @@ def _assemble(x, u, m, sw):
         r3 = r2 * math.sqrt(r2)
         aO[0] += -sc[S_MU] * rO[0] / r3
         aO[1] += -sc[S_MU] * rO[1] / r3
-    return Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO, T, cols, ncol, idx
+    return Mg, f, G, phi, phid, Bs, thmdd, uJ, tauw, aO, T, cols, ncol, idx, edot

@@ -50,7 +50,7 @@ from rsmcheck.driver.runner import run
 from rsmcheck.core.store import EngineRun, Event, Phase, write_run, write_text
 
 FORMAT = "rsmcheck-endstate"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 RIGID_KEYS = ("base_pose", "base_rate", "joint_angles", "joint_rates", "joint_frame_angles",
               "joint_frame_rates", "motor_angles", "motor_rates",
               "target_pose", "target_rate", "grasp", "held_points", "orbit_r", "orbit_v", "m_used",
