@@ -24,7 +24,8 @@ z = [Y, θ_m] (the rotors after Y) the right-hand side is B z + d_w τ_w, so
 
     a_s = T z + g τ_w,   T = K̃⁻¹ B,   g = K̃⁻¹ d_w,   ȧ_s = T ż,
 
-T and g constant for a given terminal basis (`slaving_tables`, once per model).  The
+T and g constant for a given terminal basis (`slaving_tables`, once per model), τ_w here
+the part of the stop's torque the link carries elastically (−s e/h below).  The
 equations of z follow from the kinetic and potential energy of the whole model with the
 shapes slaved (their mass kept):
 
