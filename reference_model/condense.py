@@ -226,6 +226,16 @@ DELTA_FLOOR = 1e-12
 
 
 @njit(cache=True, inline="always")
+def _overlap(psi_free, lim):
+    """The stop's side s (±1; 0 off the stop, |ψ_free| ≤ ψ_lim) and δ_0 = s ψ_free − ψ_lim."""
+    if psi_free > lim:
+        return 1.0, psi_free - lim
+    if psi_free < -lim:
+        return -1.0, -psi_free - lim
+    return 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
 def _stop_rate(psi_free, psid_free, e, h, ce, x_kv, lim, k, lam):
     """The terminal link's deflection under the stop, e, as the state the stop's law leaves
     (module doc): (e_eff, ė, τ_w).  x_kv = (η K_ss g)·T ż / h, the links' Kelvin–Voigt
@@ -234,13 +244,9 @@ def _stop_rate(psi_free, psid_free, e, h, ce, x_kv, lim, k, lam):
     and ė = 0; a terminal link without static shapes (h = 0) does not deflect, the law acts
     at ψ_free.  Where the stop would pull it lets go: no torque, the link relaxes under its
     own damping (push = 0); e stays ≥ 0."""
-    if psi_free > lim:
-        s = 1.0
-    elif psi_free < -lim:
-        s = -1.0
-    else:
+    s, d0 = _overlap(psi_free, lim)
+    if s == 0.0:
         return 0.0, (-e / (h * ce) if e > 0.0 and ce > 0.0 else 0.0), 0.0
-    d0 = s * psi_free - lim  # δ_0 = s ψ_free − ψ_lim
     if h == 0.0:
         return 0.0, 0.0, -s * max(d0 * (k + lam * s * psid_free), 0.0)
     if lam == 0.0 and ce == 0.0:  # e/h = k (δ_0 − e)
@@ -262,15 +268,12 @@ def _stop_rate(psi_free, psid_free, e, h, ce, x_kv, lim, k, lam):
 def _settled(psi_free, psid_free, h, lim, k, lam):
     """e where the stop's law holds with ė = 0 (a start in contact),
     e/h = (δ_0 − e)(k + λ s ψ̇_free), clamped to push only; and τ_w."""
-    if psi_free > lim:
-        s = 1.0
-    elif psi_free < -lim:
-        s = -1.0
-    else:
+    s, d0 = _overlap(psi_free, lim)
+    if s == 0.0:
         return 0.0, 0.0
     stiff = max(k + lam * s * psid_free, 0.0)
-    e = (s * psi_free - lim) * stiff * h / (1.0 + stiff * h)
-    return e, (-s * stiff * (s * psi_free - lim) if h == 0.0 else -s * e / h)
+    e = d0 * stiff * h / (1.0 + stiff * h)
+    return e, (-s * stiff * d0 if h == 0.0 else -s * e / h)
 
 
 @njit(cache=True, inline="always")
