@@ -277,7 +277,7 @@ class ReferenceModel:
         the stop deflections in their admissible range (condense.condense; a copy of x when
         the shapes are not condensed); `settle`: the stop deflections where the stop's law
         holds with ė = 0, for a start."""
-        xc = condense.condense(np.asarray(x, float), *self.core_args(cfg), settle)[0]
+        xc = measures.completed(np.asarray(x, float), *self.core_args(cfg), settle)
         return xc if self.condensed else np.array(xc, float)
 
     @property

@@ -35,6 +35,7 @@ import numpy as np
 
 from reference_model import observe, switching
 from reference_model.build import STATIC_MODES_DEFAULT, Configuration, ReferenceModel, initial_state
+from reference_model.measures import sense
 from reference_model.model_arrays import input_vector
 from reference_model.settings import INTEGRATORS
 from reference_model.stepper import Stepper
@@ -94,6 +95,7 @@ class ReferenceEngine:
         init = build_initial(case, self.params, start)
         self.x, self.cfg = initial_state(self.model, init)
         self.t = 0.0
+        self._sensed: np.ndarray | None = None  # measures.sense of the state after `advance`
         self.stepper = Stepper(self.model, self.cfg, integrator=self.integrator,
                                quiet_integrator=self.quiet_integrator, rtol=self.rtol, h_max=self._h_max,
                                engine_name=self.name)
@@ -108,10 +110,17 @@ class ReferenceEngine:
         # an interval longer than the case's control period belongs to a quiet segment
         quiet = self.case.solver.is_quiet(t_next - self.t)
         x = self.stepper.advance(self.model, self.cfg, self.x, self.t, t_next, input_vector(inputs), quiet)
-        self.x = self.model.complete(x, self.cfg)  # condensed static shapes (condense.py)
+        # the state completed (condensed static shapes, condense.py) and what the sensors
+        # read of it, in one compiled call; `sensors` returns that while the state is x
+        v = sense(x, *self.model.core_args(self.cfg))
+        self.x = v[:self.model.layout.nx].copy()
+        self._sensed = v
         self.t = t_next
 
     def sensors(self) -> Sensors:
+        v = self._sensed
+        if v is not None and np.array_equal(v[:self.model.layout.nx], self.x):
+            return observe.sensors_of(self.model, self.t, v, self.cfg)
         return observe.sensors(self.model, self.t, self.x, self.cfg)
 
     def observe(self, inputs: Inputs) -> dict:
@@ -120,10 +129,12 @@ class ReferenceEngine:
 
     def capture(self, arm: int) -> dict[str, float]:
         self.stepper.new_system()
+        self._sensed = None
         return switching.capture(self.model, self.x, self.cfg, arm)
 
     def release(self, arm: int) -> dict[str, float]:
         self.stepper.new_system()
+        self._sensed = None
         return switching.release(self.model, self.x, self.cfg, arm)
 
     # ---- exact state for phase chaining (rsmcheck.orchestration.chain) ----------------------------
@@ -139,6 +150,7 @@ class ReferenceEngine:
         start of the case, already built).  A case that enters an orbit the previous phase
         did not have places O on its orbit at the system COM (rsmcheck.driver.initial.place_on_orbit):
         positions and velocities move by the COM's (the rigid part of the chained end state)."""
+        self._sensed = None
         lay = self.model.layout
         if exact.get("engine", self.name) != self.name or "x" not in exact \
                 or list(exact.get("n_modes", [])) != list(lay.n_modes):

@@ -1,5 +1,9 @@
 """What is measured of a state, compiled: the values the shared driver's sensors read
 and the momentum of base, links and target (observe.py names and packs them).
+
+`sense` and `completed` are whole calls from Python, one array back each: a compiled call
+costs a few µs to unpack `ModelArrays` and to box what it returns, more than the
+kernels' own work here, and the sampled-data loop makes them at every sample.
 """
 
 from __future__ import annotations
@@ -9,6 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
+from reference_model.condense import condense
 from reference_model.kinematics import joint_section_angles, kinematics, wrist_angles
 from reference_model.model_arrays import N_LINKS, S_I0, S_JB, S_JEX, S_JT, S_L, S_MB0, S_ML, S_MT
 
@@ -50,6 +55,47 @@ def sensor_values(x, m, sw):
         com[0] += mL * R[i, 0] + c * s1x - s * s1y
         com[1] += mL * R[i, 1] + s * s1x + c * s1y
     return kin.rE, kin.rEd, psi, psid, psi_w, com / msys, msys
+
+
+#: `sense`'s vector after the completed state (its first nx entries): offsets of ψ_J, ψ̇_J
+#: (6 each), ψ_w (2), r_E, ṙ_E (2 × 2 each, a row per arm), the system COM in base axes
+#: about the base COM (2) and the system mass (1)
+SENSE_PSI, SENSE_PSID, SENSE_PSIW, SENSE_RE, SENSE_RED, SENSE_COMB, SENSE_MASS = 0, 6, 12, 14, 18, 22, 24
+N_SENSED = 25
+
+
+@njit(cache=True)
+def completed(x, m, sw, settle):
+    """x with the condensed static shapes filled in and the stop deflections in range: the
+    first result of `condense.condense` (x itself when nothing is condensed)."""
+    return condense(x, m, sw, settle)[0]
+
+
+@njit(cache=True)
+def sense(x, m, sw):
+    """Everything the shared driver's sensors read of the state x, in one vector: x completed
+    (`completed`), then the `sensor_values` of it at the offsets SENSE_* and the system
+    COM in base axes about the base COM,
+        COM_B = A(θ_B)ᵀ (COM − r_B)."""
+    xc = condense(x, m, sw, False)[0]
+    rE, rEd, psi, psid, psi_w, com, msys = sensor_values(xc, m, sw)
+    nx = xc.shape[0]
+    out = np.empty(nx + N_SENSED)
+    out[:nx] = xc
+    o = out[nx:]
+    o[SENSE_PSI:SENSE_PSI + 6] = psi
+    o[SENSE_PSID:SENSE_PSID + 6] = psid
+    o[SENSE_PSIW:SENSE_PSIW + 2] = psi_w
+    for k in range(2):
+        for j in range(2):
+            o[SENSE_RE + 2 * k + j] = rE[k, j]
+            o[SENSE_RED + 2 * k + j] = rEd[k, j]
+    c, s = math.cos(xc[2]), math.sin(xc[2])
+    d0, d1 = com[0] - xc[0], com[1] - xc[1]
+    o[SENSE_COMB] = c * d0 + s * d1
+    o[SENSE_COMB + 1] = -s * d0 + c * d1
+    o[SENSE_MASS] = msys
+    return out
 
 
 @njit(cache=True)

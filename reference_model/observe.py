@@ -15,7 +15,8 @@ from reference_model import kinematics
 from reference_model.build import Configuration, ReferenceModel
 from reference_model.field import tidal_potential
 from reference_model.link import links_tidal_potential
-from reference_model.measures import momentum, sensor_values
+from reference_model.measures import (SENSE_COMB, SENSE_MASS, SENSE_PSI, SENSE_PSID, SENSE_PSIW, SENSE_RE,
+                                      SENSE_RED, momentum, sense, sensor_values)
 from reference_model.model_arrays import N_LINKS, U_TAU_B, U_TAU_M
 from reference_model.solve import solve_constrained
 from rsmcheck.core.engine import Sensors
@@ -91,23 +92,27 @@ def wrist_angles(model: ReferenceModel, x: np.ndarray, cfg: Configuration,
 def sensors(model: ReferenceModel, t: float, x: np.ndarray, cfg: Configuration) -> Sensors:
     """What the shared driver's controllers and supervisor read at time t (rsmcheck.core.engine.Sensors);
     condensed static shapes at their values for the rest of x (so that a perturbed state
-    reads right, `modes.linear_plant`)."""
+    reads right, `modes.linear_plant`).  One compiled call (`measures.sense`)."""
+    return sensors_of(model, t, sense(np.asarray(x, float), *model.core_args(cfg)), cfg)
+
+
+def sensors_of(model: ReferenceModel, t: float, v: np.ndarray, cfg: Configuration) -> Sensors:
+    """`sensors` from the vector `measures.sense` returned for the state; the fields are views
+    of v, which the caller must not write."""
     lay = model.layout
-    x = model.complete(x, cfg)
-    q, qd = x[lay.q], x[lay.qd]
-    rE, rEd, psi, psid, psi_w, com, m = sensor_values(x, *model.core_args(cfg))
-    c, s = math.cos(q[2]), math.sin(q[2])
-    d = com - q[0:2]
+    xc, o = v[:lay.nx], v[lay.nx:]
+    q, qd = xc[lay.q], xc[lay.qd]
     return Sensors(
-        time=t, base_pose_I=q[0:3].copy(), base_rate_I=qd[0:3].copy(),
-        joint_angles=psi, joint_rates=psid, joint_frame_angles=q[3:9].copy(),
-        joint_frame_rates=qd[3:9].copy(), wrist_angles=psi_w,
-        motor_angles=x[lay.motors].copy(), motor_rates=x[lay.motors_d].copy(),
-        ee_pos_I=rE.copy(), ee_vel_I=rEd.copy(),
-        target_pose_I=x[lay.target].copy(), target_rate_I=x[lay.target_d].copy(),
-        com_pos_B=np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]),
-        grasp_state=cfg.grasp_on.copy(), system_mass=float(m),
-        orbit_r_I=x[lay.r_O].copy(), orbit_v_I=x[lay.v_O].copy())
+        time=t, base_pose_I=q[0:3], base_rate_I=qd[0:3],
+        joint_angles=o[SENSE_PSI:SENSE_PSI + 6], joint_rates=o[SENSE_PSID:SENSE_PSID + 6],
+        joint_frame_angles=q[3:9], joint_frame_rates=qd[3:9],
+        wrist_angles=o[SENSE_PSIW:SENSE_PSIW + 2],
+        motor_angles=xc[lay.motors], motor_rates=xc[lay.motors_d],
+        ee_pos_I=o[SENSE_RE:SENSE_RE + 4].reshape(2, 2), ee_vel_I=o[SENSE_RED:SENSE_RED + 4].reshape(2, 2),
+        target_pose_I=xc[lay.target], target_rate_I=xc[lay.target_d],
+        com_pos_B=o[SENSE_COMB:SENSE_COMB + 2],
+        grasp_state=cfg.grasp_on.copy(), system_mass=float(o[SENSE_MASS]),
+        orbit_r_I=xc[lay.r_O], orbit_v_I=xc[lay.v_O])
 
 
 def observables(model: ReferenceModel, t: float, x: np.ndarray, u: np.ndarray, cfg: Configuration,
