@@ -44,6 +44,8 @@ from exudyn_model import links  # noqa: E402
 from rsmcheck.driver.control_kernels import fma  # noqa: E402
 
 N_GAUSS_FIELD = 4  # Gauss points per element for the tidal field, energy and momentum
+#: the base node's outputs the thrust inertia reads at every step of a burn
+_COORDINATES, _COORDINATES_T = exu.OutputVariableType.Coordinates, exu.OutputVariableType.Coordinates_t
 
 
 def tidal(mu: float, r_o: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -158,6 +160,7 @@ class FieldForces:
         self.orbit = bool(orbit)
         L = p.link.length
         self.rigid_gauss = links.gauss(8, -0.5 * L, 0.5 * L)  # a rigid link's field points
+        self.rigid_links = [it for it in model.links if it.rigid]
         # the tidal field's quadrature on the flexible links (tidal_carrier_forces)
         self.flex = [i for i, it in enumerate(model.links) if not it.rigid]
         self.flex_coords = np.array([model.links[i].coords for i in self.flex], dtype=np.int64).reshape(
@@ -183,9 +186,10 @@ class FieldForces:
         # its pre-step function is registered while there is thrust (`Stepper.advance`)
         self.thrust_inertia = _ThrustInertia(model.carrier, model.base_node, theta_ref)
 
-    def advance_orbit(self, state, h: float, a_thr: np.ndarray) -> None:
+    def advance_orbit(self, state, h: float, a_thr) -> None:
         """O of `state` over one control interval: r̈_O = g(r_O) + a_thr (physics.md §5),
-        classical RK4 (`orbit_rk4`; a_thr, the interval's mean thrust acceleration, held)."""
+        classical RK4 (`orbit_rk4`; a_thr (x, y: an array or two floats), the interval's mean
+        thrust acceleration, held)."""
         ax, ay = float(a_thr[0]), float(a_thr[1])
         if not self.orbit and ax == 0.0 and ay == 0.0:
             return
@@ -238,9 +242,7 @@ class FieldForces:
         tidal_carrier_forces(q, v, float(s), self.flex_coords, self.carrier_flex, cols, vals, self.weights,
                              self.points, self.carrier_points, np.array([m_base, p.target.mass]), r_O, mu, out)
         xs_rigid, ws_rigid = self.rigid_gauss
-        for it in self.model.links:
-            if not it.rigid:
-                continue
+        for it in self.rigid_links:
             qi = q[it.coords] + s * v[it.coords]
             pts = qi[:2] + np.outer(xs_rigid, [math.cos(qi[2]), math.sin(qi[2])])
             f = p.link.rho_a * ws_rigid[:, None] * tidal(mu, r_O, pts)
@@ -299,11 +301,11 @@ class _ThrustInertia:
             return True
         h = t - self.t_last  # t: the end of the step about to be taken (the state: its start)
         self.t_last = t
-        q = mbs.GetNodeOutput(self.base_node, exu.OutputVariableType.Coordinates)
-        v = mbs.GetNodeOutput(self.base_node, exu.OutputVariableType.Coordinates_t)
-        theta = self.theta_ref + q[2] + h * v[2]
-        mbs.SetObjectParameter(self.carrier, "forceVector", self.forces(theta))
-        th_mid = self.theta_ref + q[2] + 0.5 * h * v[2]
+        # θ_B and ω_B at the start of the step, as floats (numpy scalars cost twice the arithmetic)
+        th = self.theta_ref + float(mbs.GetNodeOutput(self.base_node, _COORDINATES)[2])
+        om = float(mbs.GetNodeOutput(self.base_node, _COORDINATES_T)[2])
+        mbs.SetObjectParameter(self.carrier, "forceVector", self.forces(th + h * om))
+        th_mid = th + 0.5 * h * om
         dv = h * self.accel
         self.impulse[0] += dv * math.cos(th_mid)
         self.impulse[1] += dv * math.sin(th_mid)
@@ -321,6 +323,11 @@ class _ThrustInertia:
         took a relative error δ/span that grows with the offset (p4_hohmann's burn 2:
         δ = 1.1e-7 s after 535 s, 1.1e-4 of the thrust acceleration, 6.0e-3 m/s along
         the thrust, 0.69 m of altitude at 3500 s); divided by `elapsed`, δ cancels."""
+        return np.array(self.mean_acceleration_xy(span))
+
+    def mean_acceleration_xy(self, span: float) -> tuple[float, float]:
+        """`mean_acceleration` as two floats (x, y) [m/s²] (at every control sample: no array)."""
+        ix, iy = self.impulse
         if self.elapsed > 0.0:
-            return np.array(self.impulse) / self.elapsed
-        return np.array(self.impulse) / span if span > 0.0 else np.zeros(2)
+            return ix / self.elapsed, iy / self.elapsed
+        return (ix / span, iy / span) if span > 0.0 else (0.0, 0.0)

@@ -48,7 +48,9 @@ def coordinates(model, state: EngineState) -> tuple[np.ndarray, np.ndarray]:
     if state.sample is not None:
         return state.sample
     sd = model.mbs.systemData
-    return np.asarray(sd.GetODE2Coordinates()) + model.index.q_ref, np.asarray(sd.GetODE2Coordinates_t())
+    q = np.asarray(sd.GetODE2Coordinates())  # a new array (pybind11 copies Exudyn's vector)
+    q += model.index.q_ref
+    return q, np.asarray(sd.GetODE2Coordinates_t())
 
 
 def base_mass(params, state: EngineState) -> float:

@@ -201,11 +201,12 @@ class Stepper:
             raise SimulationDiverged(self.name, state.t, "?",
                                      "Newton failed (step reduction exhausted)" if ok is False else f"ODE2[{bad}]",
                                      float(q[bad]) if bad >= 0 else float("nan"))
-        if ff is not None:
-            ff.advance_orbit(state, t_next - state.t, ff.thrust_inertia.mean_acceleration(t_next - state.t))
-            state.m_used += mass_flow(self.model.params, thrust) * (t_next - state.t)
+        if ff is not None:  # (span = t_next − state.t: state.t has not moved)
+            ff.advance_orbit(state, span, ff.thrust_inertia.mean_acceleration_xy(span))
+            state.m_used += mass_flow(self.model.params, thrust) * span
         state.t = t_next
-        q.flags.writeable = v.flags.writeable = False  # shared by every reader until it changes
+        q.setflags(write=False)  # shared by every reader until it changes
+        v.setflags(write=False)
         state.sample = (q, v)  # the state at the sample, until it changes (state.coordinates)
 
     def step_length(self, span: float) -> float:
