@@ -29,9 +29,17 @@ def coupled_frequencies(case, n: int = 6, f_min: float = 1.0, **engine_options) 
 def linear_plant(case, outputs, n_inputs: int = 7, eps: float = 1e-7, **engine_options):
     """(A, B, C) of the reference linearised at the initial state of `case` (damping kept):
     ẋ = A x + B u on x = (Y*, Ẏ*), u = (τ_m1..6, τ_B), y = `outputs(sensors)`; central
-    differences of its ODE and of its sensors."""
+    differences of its ODE and of its sensors.  The reference point O, the propellant and
+    the stop deflections e (condense.py) are held: e is zero off the wrist stops, and a
+    state that starts on a stop (e ≠ 0) is refused, its linearisation would leave out the
+    stop's own relaxation."""
     ref = ReferenceEngine(case, **engine_options)
     model, x0, cfg = ref.model, ref.x.copy(), ref.cfg
+    e0 = x0[model.layout.stop_deflection]
+    if np.any(e0 != 0.0):
+        raise ValueError(f"{case.name}: the initial state is on a wrist stop (stop deflections e = "
+                         f"{e0[0]:.3g}, {e0[1]:.3g} rad); the linear plant holds e and would leave out "
+                         "the stop's relaxation")
     m = 2 * model.layout.ns
     u0 = np.zeros(N_INPUTS)
     A, B, cols = np.zeros((m, m)), np.zeros((m, n_inputs)), []

@@ -189,3 +189,21 @@ def test_stop_torque_is_the_stop_law_at_the_slaved_wrist(fraction, toward):
     assert tau * psi[0] <= 0.0
     if toward > 0:
         assert tau < 0.0  # pressing on the upper stop: pushed back
+
+
+def test_linear_plant_refuses_a_start_on_a_stop(monkeypatch):
+    """`modes.linear_plant` holds the stop deflections e: off the stops (e = 0, every case's
+    start) that is exact, on a stop it would leave out the stop's relaxation, so such a
+    start is refused with the deflections named (off the stop: tests/crosscheck/test_closed_loop.py)."""
+    from reference_model import modes
+    from reference_model.engine import ReferenceEngine
+
+    class OnTheStop(ReferenceEngine):
+        def __init__(self, case, **options):
+            super().__init__(case, **options)
+            self.x[self.model.layout.stop_deflection] = (2e-6, 0.0)
+
+    case = load_case("p2_capture_regrasp").short
+    monkeypatch.setattr(modes, "ReferenceEngine", OnTheStop)
+    with pytest.raises(ValueError, match=r"on a wrist stop \(stop deflections e = 2e-06, 0 rad\)"):
+        modes.linear_plant(case, lambda s: np.zeros(0))
