@@ -4,7 +4,8 @@ Every (case, engine, variant) run happens in a fresh Python process, so that its
 resident memory is its own; its wall time excludes the process start, the imports and
 numba's compilation (a warm-up run of 0.01 s of the same case comes first).  Each run is
 the variant `rsmcheck run/check` would run: with `--variant short` the case's [short]
-variant with its own segments and engine settings (`bench_cases`).  The mission runs its
+variant with its own segments and engine settings (`bench_cases`); `--variant targets` runs
+what the speed targets read (the mission at full length, every case short).  The mission runs its
 phases chained, as `rsmcheck run mission` does, and records each phase's own simulated and
 wall seconds (`phases`).  Beside the times, each run records the settings and counts behind
 them (`SOLVER_KEYS`: steps, Newton iterations, Jacobians).  Each run is one Dask task
@@ -334,8 +335,9 @@ def _positive_int(text: str) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="rsmcheck bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout instead of the table")
-    parser.add_argument("--variant", default="short", choices=[*VARIANTS, "both"],
-                        help="the cases' --short variants (default), their full length, or both")
+    parser.add_argument("--variant", default="short", choices=[*VARIANTS, "both", "targets"],
+                        help="the cases' --short variants (default), their full length, both, or what the "
+                             "speed targets read: the full mission and every case short")
     parser.add_argument("--full", action="store_true", help="same as --variant full")
     parser.add_argument("--engine", default="all", help="ENGINE, A,B or all (default: every engine that simulates)")
     parser.add_argument("--cases", nargs="+", help="only these cases (default: every case and the mission)")
@@ -343,7 +345,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="runs at a time: the local Dask cluster's workers, each running one run at a time in "
                              "its own process (default 1; 2 on the 2-core machine puts the engines side by side; "
                              "not used with rsmcheck --scheduler, whose workers decide)")
-    parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_all.json)")
+    parser.add_argument("--out", help="also write the JSON document to this file (e.g. docs/data/bench_targets.json)")
     parser.add_argument("--baseline", metavar="FILE",
                         help="compare the runs with a stored bench document: the work (steps, Newton iterations) "
                              "of each run, and its wall time when the machines are alike (bench_diff)")
@@ -361,13 +363,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     engines = engine_names(args.engine)
     for e in engines:
         require(e)
-    variants = ["full"] if args.full else (list(VARIANTS) if args.variant == "both" else [args.variant])
+    variants = ["full"] if args.full else (list(VARIANTS) if args.variant == "both" else
+                                           ["short"] if args.variant == "targets" else [args.variant])
     names = args.cases or [p.stem for p in list_cases()]
     for name in names:  # a misspelt case is a bad input (exit 2), not a failed run
         load_case(name)
     commit, dirty = git_commit()  # the code the runs import, not the tree at the end of hours of runs
     started = time.monotonic()
     work = [(name, engine, variant) for name in names for variant in variants for engine in engines]
+    if args.variant == "targets":  # the long runs first (on two workers side by side), then the short
+        work = [("mission", engine, "full") for engine in engines] + \
+            [(name, engine, "short") for name in names for engine in engines]
 
     def progress(r: dict) -> None:
         state = f"ERROR {r['error']}" if "error" in r else \

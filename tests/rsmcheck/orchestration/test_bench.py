@@ -108,3 +108,24 @@ def test_table_starts_with_the_machine_the_runs_ran_on():
     assert first == "machine: AMD EPYC (family 25, model 17), 2 logical CPUs, 23.5 GiB, Linux, Python 3.11.7 " \
                     "(exudyn 1.13.6)"
     assert "not recorded" in table({"engines": ["reference"], "runs": runs}).splitlines()[0]
+
+
+def test_variant_targets_runs_the_full_mission_then_every_case_short(monkeypatch, capsys):
+    """`--variant targets`: what the speed targets read, the mission at full length (one run
+    per engine, first, so that two workers fly them side by side), then each case short."""
+    from rsmcheck.orchestration import bench
+
+    seen = []
+
+    def fake_run_all(work, jobs, progress):
+        seen.extend(work)
+        return [dict(_run(c, e, {}), variant=v) for c, e, v in work]
+
+    monkeypatch.setattr(bench, "run_all", fake_run_all)
+    monkeypatch.setattr(bench, "rhs_timings", lambda: {})
+    assert main(["--variant", "targets", "--engine", "reference,exudyn", "--cases", "free_drift", "capture",
+                 "--json"]) == 0
+    assert seen == [("mission", "reference", "full"), ("mission", "exudyn", "full"),
+                    ("free_drift", "reference", "short"), ("free_drift", "exudyn", "short"),
+                    ("capture", "reference", "short"), ("capture", "exudyn", "short")]
+    capsys.readouterr()
