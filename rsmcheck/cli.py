@@ -199,7 +199,8 @@ def _cmd_budget(args: argparse.Namespace) -> int:
         raise InputError("--engines", args.engines, "a budget compares two or more engines")
     if args.apply and len(engines) != 2:
         raise InputError("--apply", ",".join(engines), "writes the rows of one pair of engines: name two")
-    results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2)
+    runs = output_dir(args.runs, "--runs") if args.runs else None
+    results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2, run_dir=runs)
     for cb in results:
         print("\n".join(budget.table_lines(cb)))
     if args.suggest:
@@ -433,7 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--option", action="append", metavar="ENGINE:KEY=VALUE",
                    help="an engine's constructor option, e.g. reference:n_modes=4 (repeatable)")
     p.add_argument("--out", help="store DIR/CASE.h5 with both runs, and reuse the runs stored there "
-                                 "that are current (same case file, parameters, variant, options, code)")
+                                 "that are current (same case inputs without [compare] rows, parameters, variant, options, "
+                                 "code)")
     p.add_argument("--rerun", action="store_true", help="with --out: run again even what is stored and current")
     p.add_argument("--serial", action="store_true",
                    help="run the engines one after the other in this process (default: 2 processes)")
@@ -445,6 +447,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"the JSON document; its other cases are kept (default: {budget.DEFAULT_OUT})")
     p.add_argument("--engines", metavar="A,B", help="the engines, the model under test first "
                                                      "(default: the default engines, `rsmcheck engines`)")
+    p.add_argument("--runs", metavar="DIR", help="read the runs at the case's settings from DIR/CASE.h5 where "
+                                                 "current, store the ones made there (as check --out and the "
+                                                 "report do: out/full/runs is make fullcheck's)")
     p.add_argument("--suggest", action="store_true", help="print each row's suggested tolerance and why")
     p.add_argument("--factor", type=float, default=budget.SUGGEST_FACTOR, metavar="K",
                    help=f"suggested tolerance = K x budget, rounded up to {budget.SUGGEST_DIGITS} significant "

@@ -29,8 +29,12 @@ significant figures (`Suggest`, `Budget.suggested_tolerance`): it covers the fac
 leaves the margin 3 the verdict calls "ok".
 
 The runs are jobs of `runs.run_jobs` (Dask, as every multi-run command): per case and
-engine, one at the case's settings and one refined.  Nothing is stored but the document
-(`write_document`, atomically); its cases are merged into what the file holds, by variant.
+engine, one at the case's settings and one refined.  With a run folder (`rsmcheck budget
+--runs DIR`) the runs at the case's settings are those of `rsmcheck check --out DIR` and of
+the report: read from DIR when valid (`runs.reusable`), else made and stored there
+(`runs.add_runs`), so that a budget and a check of the same code share them.  The refined
+runs are not kept.  The document is written atomically (`write_document`); its cases are
+merged into what the file holds, by variant.
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ from rsmcheck.core.plugins import default_engines, plugin, refined_options, sett
 from rsmcheck.core.store import EngineRun, git_commit, json_number, machine, write_json
 from rsmcheck.orchestration import executor
 from rsmcheck.orchestration.compare import check_runs, engine_pairs, not_checked
-from rsmcheck.orchestration.runs import Job, expected_wall, run_engine, run_jobs
+from rsmcheck.orchestration.runs import Job, add_runs, expected_wall, reusable, run_engine, run_jobs, source_digest
 
 #: above this margin (tolerance / budget) a row is "blind"
 BLIND_MARGIN = 10.0
@@ -236,12 +240,15 @@ class CaseBudget:
 
 
 def _record(engine: str, variant: Case, options: Mapping[str, Any], run: EngineRun | None,
-            wall_s: float, refinement: str = "") -> dict[str, Any]:
+            wall_s: float, refinement: str = "", reused: bool = False) -> dict[str, Any]:
     """What the document says of one run: its option overrides, the case's settings of the
-    engine, what the engine resolved and counted (`EngineRun.solver`), its wall time."""
+    engine, what the engine resolved and counted (`EngineRun.solver`), its wall time, and
+    whether it was read from the run folder."""
     out: dict[str, Any] = {"options": dict(options), "case_settings": settings_of(variant, engine).given()}
     if refinement:
         out["refinement"] = refinement
+    if reused:
+        out["reused"] = True
     if run is not None:
         out["solver"] = dict(run.solver)
         out["job_wall_s"] = wall_s
@@ -249,45 +256,61 @@ def _record(engine: str, variant: Case, options: Mapping[str, Any], run: EngineR
 
 
 def measure(cases: Sequence[Case], short: bool, engines: Sequence[str] | None = None,
-            progress: Progress | None = None, workers: int = 2) -> list[CaseBudget]:
+            progress: Progress | None = None, workers: int = 2, run_dir: Path | None = None) -> list[CaseBudget]:
     """Each case's budget: every engine (default: the default engines) run at the case's
     settings and refined by its plug-in, all of them jobs of one `run_jobs` call (Dask,
-    `workers` local processes or the --scheduler's cluster; 0: in this process).  A case
-    without [compare] rows is returned with `skipped` set and nothing run."""
+    `workers` local processes or the --scheduler's cluster; 0: in this process).  With
+    `run_dir`, the runs at the case's settings are read from there when valid and stored
+    there when made.  A case without [compare] rows is returned with `skipped` set and
+    nothing run."""
     engines = list(engines or default_engines())
     out = [CaseBudget(c, short, skipped=not_checked(c, short), engines=tuple(engines)) for c in cases]
     todo = [cb for cb in out if not cb.skipped]
     fine = {(cb.name, e): refined_options(e, cb.variant) for cb in todo for e in engines}
+    digest = source_digest() if run_dir is not None else None
+    at_settings = {e: {} for e in engines}
+    stored = {cb.name: reusable(run_dir, cb.case, short, at_settings, digest) if run_dir is not None else {}
+              for cb in todo}
     jobs = []
     for cb in todo:
         cb.not_measured = tuple(e for e in engines if fine[(cb.name, e)] is None)
         for e in engines:
             wall = expected_wall(cb.case, e)
-            jobs.append(Job(f"{cb.name} / {e} at the case's settings", run_engine, (e, cb.variant, {}), wall,
-                            (cb.name, e, False)))
+            if e not in stored[cb.name]:
+                jobs.append(Job(f"{cb.name} / {e} at the case's settings", run_engine, (e, cb.variant, {}), wall,
+                                (cb.name, e, False)))
             opts = fine[(cb.name, e)]
             if opts is not None:
                 what = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in opts.items())
                 jobs.append(Job(f"{cb.name} / {e} refined ({what}: {plugin(e).refinement})", run_engine,
                                 (e, cb.variant, opts), 2 * wall, (cb.name, e, True)))
+    reused = [f"{name} / {e}" for name, have in stored.items() for e in have]
     if progress and jobs:
-        progress(f"{len(jobs)} runs " + executor.describe(workers))
+        progress(f"{len(jobs)} runs " + executor.describe(workers)
+                 + (f"; stored runs reused: {', '.join(reused)}" if reused else ""))
     outcomes = run_jobs(jobs, progress, workers)
     got = {job.key: outcomes[job] for job in jobs}
     for cb in todo:
-        runs: dict[str, EngineRun] = {}
-        fine_runs: dict[str, EngineRun | None] = {}
+        runs: dict[str, EngineRun] = dict(stored[cb.name])
+        walls = {e: float(r.solver.get("wall_s", math.nan)) for e, r in runs.items()}
+        refined = {e: got.get((cb.name, e, True)) for e in engines}
         for e in engines:
-            base = got[(cb.name, e, False)]
-            if base.error is not None:
+            base = got.get((cb.name, e, False))
+            if base is not None and base.error is not None:
                 cb.failures[e] = base.error_text
-            else:
-                runs[e] = base.value
-            oc = got.get((cb.name, e, True))
-            if oc is not None and oc.error is not None:
-                cb.failures[f"{e} refined"] = oc.error_text
-            fine_runs[e] = oc.value if oc is not None and oc.error is None else None
-            cb.runs[e] = {"case": _record(e, cb.variant, {}, runs.get(e), base.wall_s),
+            elif base is not None:
+                runs[e], walls[e] = base.value, base.wall_s
+            if refined[e] is not None and refined[e].error is not None:
+                cb.failures[f"{e} refined"] = refined[e].error_text
+        new = {e: runs[e] for e in runs if e not in stored[cb.name]}
+        if run_dir is not None and new:  # compared as read back, as `get_runs` gives them
+            runs.update({e: r for e, r in add_runs(run_dir, cb.case, short, new, at_settings, digest).items()
+                         if e in new})
+        fine_runs = {e: oc.value if oc is not None and oc.error is None else None for e, oc in refined.items()}
+        for e in engines:
+            oc = refined[e]
+            cb.runs[e] = {"case": _record(e, cb.variant, {}, runs.get(e), walls.get(e, math.nan),
+                                          reused=e in stored[cb.name]),
                           "refined": None if oc is None else _record(
                               e, cb.variant, fine[(cb.name, e)], fine_runs[e], oc.wall_s, plugin(e).refinement)}
         if len(runs) == len(engines):

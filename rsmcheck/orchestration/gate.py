@@ -7,8 +7,9 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
 
 * A golden (`goldens/CASE.ENGINE.h5`) is an ordinary run file (rsmcheck.core.store) holding
   every observable at at most `MAX_SAMPLES` evenly strided samples of the short run, all
-  events and phases, and as root attributes its provenance (case-file hash, parameter
-  hash, commit, package versions, platform, when and why it was blessed) and its gate
+  events and phases, and as root attributes its provenance (case-file hash, the hash of
+  the case's run inputs — `runs.run_inputs_hash`, without prose and [compare] rows —,
+  parameter hash, commit, package versions, platform, when and why it was blessed) and its gate
   tolerance per observable (`gate_tol.NAME`).
 * The gate tolerance is *measured* at bless time: the case is run a second time with every
   mass of the parameter set scaled by (1 + `PERTURBATION`), a change 10⁴ times double
@@ -23,7 +24,7 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   `STEP_FACTOR` times the change of that run is the second lower bound of the tolerance.
 * A run moved when any observable differs from the golden by more than its gate tolerance
   at any stored sample, when the events or phases differ, or when its time grid differs.
-  A changed case file or parameter set is reported as such (the run then has no golden to
+  A changed run input of the case file or parameter set is reported as such (the run then has no golden to
   be compared with, and is "inputs changed", exit 1 until blessed).
 * A run also moved when it did more work than its golden: a counter of its solver (the
   reference's attempted steps, Exudyn's Newton iterations, …: each plug-in's
@@ -36,10 +37,8 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import hashlib
 import json
 import platform
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
@@ -51,7 +50,7 @@ from rsmcheck.core.plugins import plugins, step_perturbed_settings
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.runs import (GOLDEN_DIR, Job, expected_wall, get_runs, golden_path,  # noqa: F401
-                                         goldens_dir, run_engine, run_jobs)  # GOLDEN_DIR: re-exported
+                                         goldens_dir, run_engine, run_inputs_hash, run_jobs)  # GOLDEN_DIR: re-exported
 from rsmcheck.core.params import Params
 from rsmcheck.core.store import EngineRun, git_commit, read_run, write_run, write_text
 
@@ -211,25 +210,6 @@ class GateResult:
 # ---------------------------------------------------------------------------------------
 # golden files
 # ---------------------------------------------------------------------------------------
-#: keys of a case file that explain and do not change a run (the gate ignores them, as
-#: it ignores comments: a reworded reason does not need a bless)
-PROSE_KEYS = frozenset({"why", "description", "gains"})
-
-
-def case_inputs_hash(case) -> str:
-    """SHA-256 of the case file's parsed content without its prose (`PROSE_KEYS`)."""
-    def strip(x):
-        if isinstance(x, dict):
-            return {k: strip(v) for k, v in x.items() if k not in PROSE_KEYS}
-        if isinstance(x, list):
-            return [strip(v) for v in x]
-        return x
-
-    with open(case.path, "rb") as f:
-        data = strip(tomllib.load(f))
-    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
-
-
 def kept_samples(n_full: int, max_samples: int = MAX_SAMPLES) -> np.ndarray:
     """Indices kept in a golden: every `stride`-th sample and the last one."""
     if n_full < 1:
@@ -309,7 +289,7 @@ def write_golden(path: Path, case, run: EngineRun, tolerances: dict[str, float],
         "platform": platform.platform(), "machine": platform.machine(),
         "perturbation": PERTURBATION, "tol_factor": TOL_FACTOR, "rel_floor": REL_FLOOR,
         "step_perturbation": STEP_PERTURBATION if deltas_step is not None else 0.0, "step_factor": STEP_FACTOR,
-        "case_inputs_hash": case_inputs_hash(case),
+        "run_inputs_hash": run_inputs_hash(case),
     }
     extra.update({_TOL + k: float(v) for k, v in tolerances.items()})
     extra.update({_DELTA + k: float(v) for k, v in deltas.items()})
@@ -368,11 +348,11 @@ def work_changes(run: EngineRun, golden_run: EngineRun) -> list[WorkChange]:
 def compare_with_golden(case, run: EngineRun, golden: Golden) -> GateResult:
     """The gate's verdict on `run` (of `case`'s short variant) against `golden`."""
     res = GateResult(case.name, run.engine, work=work_changes(run, golden.run))
-    inputs = case_inputs_hash(case)
-    if golden.attrs.get("case_inputs_hash") != inputs:
+    inputs = run_inputs_hash(case)
+    if golden.attrs.get("run_inputs_hash") != inputs:
         res.inputs_changed.append(f"case file {case.path} changed since the golden was blessed "
-                                  f"(content without prose {str(golden.attrs.get('case_inputs_hash'))[:12]} → "
-                                  f"{inputs[:12]})")
+                                  f"(run inputs, without prose and [compare] rows: "
+                                  f"{str(golden.attrs.get('run_inputs_hash'))[:12]} → {inputs[:12]})")
     if golden.attrs.get("param_hash") != case.params.digest():
         res.inputs_changed.append(f"parameter set changed since the golden was blessed "
                                   f"({str(golden.attrs.get('param_hash'))[:12]} → {case.params.digest()[:12]})")

@@ -7,9 +7,12 @@ a variant (short or full):
 
 * with a folder (`run_dir`, holding ``CASE.h5`` with every engine's run of the case), a
   stored run is reused when `read_stored` finds it valid for the current inputs — the
-  same case file (`case_hash`), parameters (`param_hash`), variant (`short`), source code
-  (`source_digest`) and engine options; the missing ones are run, stored beside the valid
-  ones, and read back, so that a fresh run and a reused one reach the comparison alike;
+  same run inputs of the case file and, for a sequence, of its phases' files
+  (`run_inputs_hash`: their content without prose and without [compare] rows, so that a
+  restated tolerance is judged on the runs it restates), parameters (`param_hash`),
+  variant (`short`), source code (`source_digest`: the modules runs are made by) and
+  engine options; the missing ones are run, stored beside the valid ones, and read back,
+  so that a fresh run and a reused one reach the comparison alike;
 * without a folder every run is made and kept in memory (the gate: fresh runs only).
 
 The work is done by `run_jobs`: independent jobs on a Dask cluster
@@ -29,6 +32,7 @@ import os
 import pickle
 import tempfile
 import time
+import tomllib
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,35 +51,62 @@ ROOT = Path(__file__).resolve().parents[2]
 GOLDEN_DIR = ROOT / "goldens"
 #: environment variable naming another folder of goldens (`goldens_dir`)
 GOLDENS_ENV = "RSMCHECK_GOLDENS_DIR"
-#: the package whose sources make a run what it is, besides each plug-in's own package
-SOURCE_PACKAGES = ("rsmcheck",)
-#: modules of rsmcheck that orchestrate, compare or report: no run depends on them (the
-#: verdict is recomputed from the runs every time)
-NOT_IN_RUNS = ("rsmcheck/cli.py", "rsmcheck/orchestration/collect.py", "rsmcheck/orchestration/bench.py",
-               "rsmcheck/orchestration/studies.py", "rsmcheck/orchestration/faults.py",
-               "rsmcheck/orchestration/gate.py", "rsmcheck/orchestration/compare.py",
-               "rsmcheck/orchestration/runs.py", "rsmcheck/orchestration/executor.py",
-               "rsmcheck/orchestration/budget.py", "rsmcheck/orchestration/case_edit.py")
+#: the sources of rsmcheck that make a run what it is: the foundation, the driver and the
+#: chaining of a sequence's phases (a folder ends in /).  The rest of rsmcheck orchestrates,
+#: compares or reports: no run depends on it, and the verdict is recomputed from the runs
+#: every time.  Every registered plug-in's package counts whole.
+RUN_SOURCES = ("rsmcheck/__init__.py", "rsmcheck/core/", "rsmcheck/driver/",
+               "rsmcheck/orchestration/__init__.py", "rsmcheck/orchestration/chain.py")
+#: keys of a case file that explain or judge a run and do not change it: prose, and the
+#: [compare] rows (a sequence's [short_compare] too), at any depth
+NOT_RUN_INPUTS = frozenset({"why", "description", "gains", "compare", "short_compare"})
 
 Progress = Callable[[str], None]
 
 
 def source_digest(root: Path | None = None) -> str:
-    """sha256 over the names and contents of the .py files that runs depend on: those of
-    SOURCE_PACKAGES and of every registered plug-in's package (all but NOT_IN_RUNS), found
-    under `root` where given, else where they are imported from: a run made by other code
-    is not reused."""
+    """sha256 over the names and contents of the .py files that runs are made by: those of
+    RUN_SOURCES and of every registered plug-in's package, found under `root` where given,
+    else where they are imported from: a run made by other code is not reused."""
     h = hashlib.sha256()
-    packages = sorted({*SOURCE_PACKAGES, *(type(p).__module__.split(".")[0] for p in plugins().values())})
+    packages = sorted({"rsmcheck", *(type(p).__module__.split(".")[0] for p in plugins().values())})
     for pkg in packages:
         folder = Path(root) / pkg if root is not None else _package_folder(pkg)
         for path in sorted(folder.rglob("*.py")):
             name = f"{pkg}/{path.relative_to(folder).as_posix()}"
-            if name in NOT_IN_RUNS:
+            if pkg == "rsmcheck" and not in_run_sources(name):
                 continue
             h.update(name.encode())
             h.update(path.read_bytes())
     return h.hexdigest()
+
+
+def in_run_sources(name: str) -> bool:
+    """Whether rsmcheck's module `name` ("rsmcheck/core/cases.py") is one runs are made by."""
+    return any(name.startswith(s) if s.endswith("/") else name == s for s in RUN_SOURCES)
+
+
+def run_inputs_hash(case: Case) -> str:
+    """SHA-256 of what in the case files makes the runs of `case` what they are: its file's
+    parsed content without NOT_RUN_INPUTS, and for a sequence each phase's file's too (both
+    variants' phases, by name).  Read from the files, so a base case and its variants hash
+    alike."""
+    def content(path: str | Path) -> Any:
+        with open(path, "rb") as f:
+            return strip(tomllib.load(f))
+
+    def strip(x: Any) -> Any:
+        if isinstance(x, dict):
+            return {k: strip(v) for k, v in x.items() if k not in NOT_RUN_INPUTS}
+        if isinstance(x, list):
+            return [strip(v) for v in x]
+        return x
+
+    data: dict[str, Any] = {"case": content(case.path)}
+    if case.phases:
+        names = sorted({*case.variant(False).phases, *case.variant(True).phases})
+        data["phases"] = {n: content(sibling_case(n, Path(case.path))) for n in names}
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def _package_folder(package: str) -> Path:
@@ -241,8 +272,8 @@ def _options_attr(options: Mapping[str, Mapping[str, Any]]) -> str:
 
 def read_stored(path: Path, case: Case, short: bool,
                 digest: str | None = None) -> tuple[dict[str, EngineRun], dict[str, dict[str, Any]]]:
-    """The runs `path` holds that were made from this case file, parameters, variant and
-    source code (`digest`, default `source_digest()`), and each one's engine options:
+    """The runs `path` holds that were made from this case's run inputs (`run_inputs_hash`),
+    parameters, variant and source code (`digest`, default `source_digest()`), and each one's engine options:
     ({engine: run}, {engine: options}); ({}, {}) when the file is missing, unreadable or
     was made from other inputs."""
     path = Path(path)
@@ -252,7 +283,7 @@ def read_stored(path: Path, case: Case, short: bool,
         runs, attrs = read_run(path)
     except (OSError, InputError):
         return {}, {}
-    if not (attrs.get("case_hash") == case.file_hash and attrs.get("param_hash") == case.params.digest()
+    if not (attrs.get("run_inputs_hash") == run_inputs_hash(case) and attrs.get("param_hash") == case.params.digest()
             and bool(attrs.get("short")) == bool(short)
             and attrs.get("source_digest") == (digest or source_digest())):
         return {}, {}
@@ -266,12 +297,31 @@ def read_stored(path: Path, case: Case, short: bool,
 def store_runs(run_dir: Path, case: Case, short: bool, runs: Mapping[str, EngineRun], digest: str | None = None,
                options: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
     """Write `runs` (engine → run) of `case` to run_dir/CASE.h5 with what makes them valid:
-    case and parameter hashes, variant, source digest, each engine's options."""
+    case file and run-input hashes, parameter hash, variant, source digest, each engine's
+    options."""
     order = [e for e in plugins() if e in runs] + [e for e in runs if e not in plugins()]
     return write_run(run_path(run_dir, case), {e: runs[e] for e in order}, case_name=case.name,
                      case_hash=case.file_hash, param_hash=case.params.digest(),
-                     extra_attrs={"short": bool(short), "source_digest": digest or source_digest(),
+                     extra_attrs={"short": bool(short), "run_inputs_hash": run_inputs_hash(case),
+                                  "source_digest": digest or source_digest(),
                                   "engine_options": _options_attr({e: (options or {}).get(e, {}) for e in order})})
+
+
+def reusable(run_dir: Path, case: Case, short: bool, options: Mapping[str, Mapping[str, Any]],
+             digest: str | None = None) -> dict[str, EngineRun]:
+    """The runs stored in `run_dir` for `case` that are valid now (`read_stored`) and were
+    made with the engine options asked for: `options`, engine → options, names the engines."""
+    stored, made_with = read_stored(run_path(run_dir, case), case, short, digest)
+    return {e: stored[e] for e in options if e in stored and made_with[e] == dict(options[e])}
+
+
+def add_runs(run_dir: Path, case: Case, short: bool, new: Mapping[str, EngineRun],
+             options: Mapping[str, Mapping[str, Any]], digest: str | None = None) -> dict[str, EngineRun]:
+    """Store the `new` runs of `case` beside what its file holds that is still valid (other
+    engines, other options), and read back the valid runs with `options` (`reusable`)."""
+    kept, made_with = read_stored(run_path(run_dir, case), case, short, digest)
+    store_runs(run_dir, case, short, {**kept, **new}, digest, {**made_with, **{e: options[e] for e in new}})
+    return reusable(run_dir, case, short, options, digest)
 
 
 # ---------------------------------------------------------------------------------------
@@ -317,10 +367,7 @@ def get_runs(cases: Sequence[Case], engines: Sequence[str], short: bool, run_dir
     res = RunSet()
     missing: dict[str, list[str]] = {}
     for case in cases:
-        have: dict[str, EngineRun] = {}
-        if run_dir is not None and not rerun:
-            stored, made_with = read_stored(run_path(run_dir, case), case, short, digest)
-            have = {e: stored[e] for e in engines if e in stored and made_with[e] == options[e]}
+        have = {} if run_dir is None or rerun else reusable(run_dir, case, short, options, digest)
         res.runs[case.name] = have
         missing[case.name] = [e for e in engines if e not in have]
         if not missing[case.name]:
@@ -372,11 +419,6 @@ def get_runs(cases: Sequence[Case], engines: Sequence[str], short: bool, run_dir
         if run_dir is None:
             res.runs[case.name].update(new)
             continue
-        # keep what the file holds that is still valid (other engines, other options)
-        kept, made_with = read_stored(run_path(run_dir, case), case, short, digest)
-        path = store_runs(run_dir, case, short, {**kept, **new}, digest,
-                          {**made_with, **{e: options[e] for e in new}})
-        stored, made_with = read_stored(path, case, short, digest)
-        res.runs[case.name] = {e: stored[e] for e in engines if e in stored and made_with[e] == options[e]}
+        res.runs[case.name] = add_runs(run_dir, case, short, new, options, digest)
     res.runs = {c.name: {e: res.runs[c.name][e] for e in engines if e in res.runs[c.name]} for c in cases}
     return res

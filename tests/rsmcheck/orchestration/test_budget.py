@@ -15,12 +15,14 @@ import numpy as np
 import pytest
 
 import rsmcheck.orchestration.budget as bud
+import rsmcheck.orchestration.runs as runs_mod
 from rsmcheck.orchestration import case_edit
 from rsmcheck.cli import main
 from rsmcheck.core.cases import CompareSpec, load_case
 from rsmcheck.core.observables import allocate
 from rsmcheck.core.plugins import plugin, settings_of
 from rsmcheck.core.store import EngineRun
+from rsmcheck.orchestration.runs import read_stored
 
 A, B = "reference", "exudyn"  # the default engines: the model under test, the other
 
@@ -167,6 +169,29 @@ def test_the_command_runs_each_engine_at_the_case_settings_and_refined(fake_engi
     assert rows["ee2_pos_B"]["verdict"] == "blind" and rows["motor_torques"]["verdict"] == "ok"
     assert rows["ee1_pos_B"]["suggested_tolerance"] == 1.3e-7
     assert not list(out.parent.glob("*.tmp"))  # written atomically: no temporary left
+
+
+def test_with_a_run_folder_the_runs_at_the_settings_are_stored_then_reused(fake_engines, tmp_path, capsys,
+                                                                           monkeypatch):
+    """--runs DIR: the first budget stores its runs at the case's settings where check --out
+    and the report find them (the refined ones are not kept); a second reads them and runs
+    only the refined ones, to the same rows."""
+    out, runs = tmp_path / "budget.json", tmp_path / "runs"
+    argv = ["budget", "p1_rigid_gains", "--short", "--serial", "--out", str(out), "--runs", str(runs)]
+    assert main(argv) == 0
+    first = json.loads(out.read_text())["variants"]["short"]["p1_rigid_gains"]
+    assert len(fake_engines) == 4 and (runs / "p1_rigid_gains.h5").is_file()
+    case = load_case("p1_rigid_gains")
+    assert sorted(read_stored(runs / "p1_rigid_gains.h5", case, True)[0]) == sorted([A, B])
+    assert main(argv) == 0
+    assert len(fake_engines) == 6 and all(c[3] for c in fake_engines[4:])  # the refined ones only
+    assert "stored runs reused: p1_rigid_gains / " in capsys.readouterr().err
+    second = json.loads(out.read_text())["variants"]["short"]["p1_rigid_gains"]
+    assert second["rows"] == first["rows"]
+    assert second["runs"][A]["case"]["reused"] is True and "reused" not in first["runs"][A]["case"]
+    monkeypatch.setattr(runs_mod, "run_engine", lambda *a, **k: pytest.fail("check ran an engine"))
+    assert main(["check", "p1_rigid_gains", "--short", "--serial", "--out", str(runs)]) == 0  # no engine ran
+    assert "3 of 3 comparisons pass" in capsys.readouterr().out
 
 
 def test_a_tight_row_exits_1_and_the_document_keeps_the_other_cases(fake_engines, tmp_path, capsys, monkeypatch):

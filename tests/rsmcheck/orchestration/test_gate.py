@@ -165,12 +165,14 @@ def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
     # what the report reads: the ratio travels with the dict
     assert res.as_dict()["moved"][0]["ratio"] == pytest.approx(m.change / m.tolerance)
 
-    # changed inputs are reported as such, not as numbers; reworded prose is not a change
+    # changed inputs are reported as such, not as numbers; reworded prose or a new
+    # [compare] row is not a change
     path = Path(case.path)
     text = path.read_text()
     try:
-        path.write_text(text.replace("a tiny valid case for the gate", "reworded") + "# a comment\n")
-        assert compare_with_golden(case, nominal, g).unchanged
+        path.write_text(text.replace("a tiny valid case for the gate", "reworded") + "# a comment\n"
+                        + '[compare.ee1_pos_B]\nmetric = "max_abs"\ntolerance = 1e-6\nwhy = "a new row"\n')
+        assert compare_with_golden(case, nominal, g).unchanged  # a [compare] row is not a run input
         path.write_text(text.replace("output_period = 1e-3", "output_period = 2e-3"))
         res = compare_with_golden(case, nominal, g)
         assert res.inputs_changed and not res.moved and not res.unchanged

@@ -1,6 +1,6 @@
 """rsmcheck.orchestration.runs: the one producer of runs (`get_runs`) reuses a stored run
-only when it was made from the same case file, parameters, variant, engine options and
-source code, runs (and stores) the rest; the one pool (`run_jobs`) runs longest first and
+only when it was made from the same run inputs of the case files, parameters, variant,
+engine options and source code (the modules runs are made by), runs (and stores) the rest; the one pool (`run_jobs`) runs longest first and
 names a failed job; `rsmcheck check` and the report's verdict give the same rows from the
 same runs."""
 
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 import pickle
 
 import numpy as np
@@ -72,7 +73,11 @@ def test_a_stored_run_is_reused_only_for_the_same_case_params_variant_options_an
     assert len(fake_runs) == 2
     get()  # so the short one is out of date now
     assert len(fake_runs) == 3
-    get(dataclasses.replace(case, file_hash="f" * 64))  # the case file changed
+    edited = tmp_path / "cases" / "free_drift.toml"  # a run input of the case file changed
+    edited.parent.mkdir()
+    edited.write_text(Path(case.path).read_text().replace(f"duration = {case.raw['duration']}",
+                                                          f"duration = {case.raw['duration'] + 1}", 1))
+    get(dataclasses.replace(case, path=str(edited)))
     assert len(fake_runs) == 4
     get()
     assert len(fake_runs) == 5
@@ -93,6 +98,58 @@ def test_a_stored_run_is_reused_only_for_the_same_case_params_variant_options_an
     get()
     assert len(fake_runs) == 11
     assert get().reused == ["free_drift"] and len(fake_runs) == 11
+
+
+def test_a_restated_tolerance_or_reason_keeps_the_runs_a_phase_change_drops_the_sequence(tmp_path, fake_runs):
+    """The run inputs leave out prose and [compare] rows; a sequence's include its phases'."""
+    case = load_case("wrist_bistop")
+    get_runs([case], ["reference"], True, tmp_path, workers=0)
+    text = Path(case.path).read_text()
+    tol = case.raw["compare"][case.compare[0].observable]["tolerance"]
+    assert f"tolerance = {tol}" in text and 'description = "' in text
+    restated = tmp_path / "restated" / "wrist_bistop.toml"
+    restated.parent.mkdir()
+    restated.write_text(text.replace(f"tolerance = {tol}", f"tolerance = {2 * tol}", 1)
+                        .replace('description = "', 'description = "Reworded. ', 1) + "# a comment\n")
+    assert get_runs([load_case(restated)], ["reference"], True, tmp_path, workers=0).reused == ["wrist_bistop"]
+    assert len(fake_runs) == 1
+    mission = load_case("mission")
+    before = runs_mod.run_inputs_hash(mission)
+    phase = load_case(mission.phases[1])
+    copy = tmp_path / "cases"
+    copy.mkdir()
+    for p in {*mission.variant(False).phases, *mission.variant(True).phases, mission.name}:
+        (copy / f"{p}.toml").write_text(Path(load_case(p).path).read_text())
+    moved = load_case(copy / "mission.toml")
+    assert runs_mod.run_inputs_hash(moved) == before  # the same files elsewhere: the same inputs
+    text = (copy / f"{phase.name}.toml").read_text()
+    (copy / f"{phase.name}.toml").write_text(text.replace(f"duration = {phase.raw['duration']}",
+                                                          f"duration = {phase.raw['duration'] + 1}", 1))
+    assert runs_mod.run_inputs_hash(load_case(copy / "mission.toml")) != before
+
+
+def test_the_source_digest_covers_every_module_of_rsmcheck_a_run_imports():
+    """RUN_SOURCES must hold what making a run (a case in every engine, a chained sequence)
+    loads of rsmcheck: a module left out would let a run made by other code be reused."""
+    import subprocess
+    import sys
+
+    code = ("import sys, dataclasses\n"
+            "from rsmcheck.core.cases import load_case\n"
+            "from rsmcheck.core.plugins import default_engines, make_engine\n"
+            "from rsmcheck.driver.runner import run\n"
+            "import rsmcheck.orchestration.chain\n"
+            "case = load_case('free_drift').variant(True)\n"
+            "for e in default_engines():\n"
+            "    run(make_engine(e, case), case, 0.002)\n"
+            "print('\\n'.join(sorted(m for m in sys.modules if m.startswith('rsmcheck'))))\n")
+    got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    names = [m.replace(".", "/") for m in got]
+    import importlib.util
+    files = [f"{n}/__init__.py" if importlib.util.find_spec(m).submodule_search_locations else f"{n}.py"
+             for n, m in zip(names, got)]
+    assert "rsmcheck/driver/runner.py" in files and "rsmcheck/orchestration/chain.py" in files
+    assert [f for f in files if not runs_mod.in_run_sources(f)] == []
 
 
 def test_only_the_missing_engines_run_and_the_valid_ones_stay_in_the_file(tmp_path, fake_runs):
