@@ -199,8 +199,9 @@ def _cmd_budget(args: argparse.Namespace) -> int:
         raise InputError("--engines", args.engines, "a budget compares two or more engines")
     if args.apply and len(engines) != 2:
         raise InputError("--apply", ",".join(engines), "writes the rows of one pair of engines: name two")
-    runs = output_dir(args.runs, "--runs") if args.runs else None
-    results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2, run_dir=runs)
+    run_dir = output_dir(args.runs, "--runs") if args.runs else None
+    results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2,
+                             run_dir=run_dir)
     for cb in results:
         print("\n".join(budget.table_lines(cb)))
     if args.suggest:

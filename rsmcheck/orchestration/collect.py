@@ -17,9 +17,8 @@ and `rsmcheck gate` use too: a stored run is reused when its attributes say it w
 from the same run inputs of the case files (`run_inputs_hash`: without prose and [compare]
 rows), the same parameters, the same variant (short or full), the same engine options and
 the same source code (`source_digest`: the ``.py`` files runs are made by); otherwise it
-is run again and stored.  The work — one
-engine on one case, one engine on the mission, the Pinocchio checks, the eigenfrequencies
-— goes through the one worker pool (`runs.run_jobs`): two at a time, longest first (each
+is run again and stored.  The work — one engine on one case, one engine on the mission,
+the Pinocchio checks, the eigenfrequencies — goes through the one worker pool (`runs.run_jobs`): two at a time, longest first (each
 golden's recorded wall time), a line on the terminal as each ends.  The verdict is always
 recomputed from the stored runs (a second, cheap pass, through `runs.read_stored`).
 """

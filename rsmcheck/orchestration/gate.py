@@ -9,8 +9,8 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   every observable at at most `MAX_SAMPLES` evenly strided samples of the short run, all
   events and phases, and as root attributes its provenance (case-file hash, the hash of
   the case's run inputs — `runs.run_inputs_hash`, without prose and [compare] rows —,
-  parameter hash, commit, package versions, platform, when and why it was blessed) and its gate
-  tolerance per observable (`gate_tol.NAME`).
+  parameter hash, commit, package versions, platform, when and why it was blessed) and
+  its gate tolerance per observable (`gate_tol.NAME`).
 * The gate tolerance is *measured* at bless time: the case is run a second time with every
   mass of the parameter set scaled by (1 + `PERTURBATION`), a change 10⁴ times double
   round-off that stands in for another machine or library build (different operation
@@ -24,8 +24,8 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   `STEP_FACTOR` times the change of that run is the second lower bound of the tolerance.
 * A run moved when any observable differs from the golden by more than its gate tolerance
   at any stored sample, when the events or phases differ, or when its time grid differs.
-  A changed run input of the case file or parameter set is reported as such (the run then has no golden to
-  be compared with, and is "inputs changed", exit 1 until blessed).
+  A changed run input of the case file or parameter set is reported as such (the run then
+  has no golden to be compared with, and is "inputs changed", exit 1 until blessed).
 * A run also moved when it did more work than its golden: a counter of its solver (the
   reference's attempted steps, Exudyn's Newton iterations, …: each plug-in's
   `work_counters`) above the golden's by more than `WORK_TOL` and `WORK_SLACK`.  Work is counted, never timed: the

@@ -273,8 +273,8 @@ def _options_attr(options: Mapping[str, Mapping[str, Any]]) -> str:
 def read_stored(path: Path, case: Case, short: bool,
                 digest: str | None = None) -> tuple[dict[str, EngineRun], dict[str, dict[str, Any]]]:
     """The runs `path` holds that were made from this case's run inputs (`run_inputs_hash`),
-    parameters, variant and source code (`digest`, default `source_digest()`), and each one's engine options:
-    ({engine: run}, {engine: options}); ({}, {}) when the file is missing, unreadable or
+    parameters, variant and source code (`digest`, default `source_digest()`), and each
+    one's engine options: ({engine: run}, {engine: options}); ({}, {}) when the file is missing, unreadable or
     was made from other inputs."""
     path = Path(path)
     if not path.is_file():

@@ -134,7 +134,8 @@ def test_the_source_digest_covers_every_module_of_rsmcheck_a_run_imports():
     import subprocess
     import sys
 
-    code = ("import sys, dataclasses\n"
+    code = ("import pathlib, sys\n"
+            "import rsmcheck\n"
             "from rsmcheck.core.cases import load_case\n"
             "from rsmcheck.core.plugins import default_engines, make_engine\n"
             "from rsmcheck.driver.runner import run\n"
@@ -142,12 +143,11 @@ def test_the_source_digest_covers_every_module_of_rsmcheck_a_run_imports():
             "case = load_case('free_drift').variant(True)\n"
             "for e in default_engines():\n"
             "    run(make_engine(e, case), case, 0.002)\n"
-            "print('\\n'.join(sorted(m for m in sys.modules if m.startswith('rsmcheck'))))\n")
-    got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    names = [m.replace(".", "/") for m in got]
-    import importlib.util
-    files = [f"{n}/__init__.py" if importlib.util.find_spec(m).submodule_search_locations else f"{n}.py"
-             for n, m in zip(names, got)]
+            "root = pathlib.Path(rsmcheck.__file__).parents[1]\n"
+            "for name, m in sorted(sys.modules.items()):\n"
+            "    if name.split('.')[0] == 'rsmcheck':\n"
+            "        print(pathlib.Path(m.__file__).relative_to(root).as_posix())\n")
+    files = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert "rsmcheck/driver/runner.py" in files and "rsmcheck/orchestration/chain.py" in files
     assert [f for f in files if not runs_mod.in_run_sources(f)] == []
 
