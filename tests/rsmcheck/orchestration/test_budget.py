@@ -331,11 +331,11 @@ def test_an_edit_changes_the_two_lines_of_the_row_and_nothing_else():
 
 
 def test_a_short_variant_that_takes_the_full_rows_is_not_edited():
-    assert case_edit.compare_table(load_case("motor_step"), True) is None  # no [short.compare]
-    assert case_edit.compare_table(load_case("motor_step"), False) == "compare"
+    assert case_edit.compare_table(load_case("thrust_burn"), True) is None  # no [short.compare]
+    assert case_edit.compare_table(load_case("thrust_burn"), False) == "compare"
     assert case_edit.compare_table(load_case("p1_rigid_gains"), True) == "short.compare"
-    edit = case_edit.apply_rows(load_case("motor_step"), True, {"motor_angles": (1e-6, "x")})
-    assert edit.changed == [] and "apply a full budget" in edit.refused["motor_angles"]
+    edit = case_edit.apply_rows(load_case("thrust_burn"), True, {"joint_angles": (2e-5, "x")})
+    assert edit.changed == [] and "apply a full budget" in edit.refused["joint_angles"]
 
 
 def test_apply_writes_the_suggestions_into_the_case_file(fake_engines, tmp_path, capsys, monkeypatch):
