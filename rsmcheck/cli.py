@@ -218,6 +218,10 @@ def _cmd_budget(args: argparse.Namespace) -> int:
         for cb in results:
             if not cb.rows:
                 continue
+            if cb.case.phases:
+                print(f"{cb.case.path}: nothing set: a sequence's phase rows ([compare.PHASE.OBSERVABLE]) are "
+                      "written by hand from the suggestions (docs/cases.md §6)")
+                continue
             edit = case_edit.apply_rows(cb.case, args.short, budget.suggestions(cb, suggest))
             applied |= {(cb.name, obs) for obs in edit.changed}
             left = [r.observable for r in cb.rows if r.observable not in {*edit.changed, *edit.refused}]
@@ -442,7 +446,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the engines one after the other in this process (default: 2 processes)")
     p = sub.add_parser("budget", help="each [compare] row's error budget: the engines' difference plus each "
                                       "one's integration error (docs/cases.md §1)")
-    p.add_argument("case", nargs="*", help="case names (default: every stand-alone case with a [compare] table)")
+    p.add_argument("case", nargs="*", help="case names (default: every stand-alone case with a [compare] table; "
+                                                  "a sequence named: the rows of its chained flight)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
     p.add_argument("--out", default=budget.DEFAULT_OUT,
                    help=f"the JSON document; its other cases are kept (default: {budget.DEFAULT_OUT})")

@@ -28,6 +28,10 @@ run's round-off seeds what a loop amplifies.  Hence the suggested tolerance,
 significant figures (`Suggest`, `Budget.suggested_tolerance`): it covers the factor 2 and
 leaves the margin 3 the verdict calls "ok".
 
+A sequence (the mission) is budgeted by the rows its chained flight is checked by
+(`sequence_budget_rows`, as the report's mission rows): each engine flies it at the phases'
+settings and again with every phase refined at its own (`chain.fly`'s phase options).
+
 The runs are jobs of `runs.run_jobs` (Dask, as every multi-run command): per case and
 engine, one at the case's settings and one refined.  With a run folder (`rsmcheck budget
 --runs DIR`) the runs at the case's settings are those of `rsmcheck check --out DIR` and of
@@ -42,18 +46,22 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
-from dataclasses import dataclass, field
+import tempfile
+from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from rsmcheck.core.cases import Case
+from rsmcheck.core.cases import Case, load_case, sibling_case
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import OBSERVABLES
 from rsmcheck.core.plugins import default_engines, plugin, refined_options, settings_of
 from rsmcheck.core.store import EngineRun, git_commit, json_number, machine, write_json
 from rsmcheck.orchestration import executor
 from rsmcheck.orchestration.compare import check_runs, engine_pairs, not_checked
-from rsmcheck.orchestration.runs import Job, add_runs, expected_wall, reusable, run_engine, run_jobs, source_digest
+from rsmcheck.orchestration.collect import phase_runs, phase_specs
+from rsmcheck.orchestration.runs import (Job, Outcome, SequenceRun, add_runs, expected_wall, reusable, run_engine,
+                                         run_jobs, run_sequence, source_digest)
 
 #: above this margin (tolerance / budget) a row is "blind"
 BLIND_MARGIN = 10.0
@@ -70,6 +78,10 @@ RULES = {
     "integration_error": "d(engine at the case's settings, engine refined by its plug-in's refined_options)",
     "budget": "model_difference + each engine's integration_error (a lower bound where one is not measured)",
     "margin": "tolerance / budget",
+    "chained": ("a phase of a sequence's chained flight (rows SEQUENCE/PHASE): tolerance and model_difference "
+                "include inherited (d0, the engines' difference at the phase's start); each integration_error "
+                "is what the phase adds to integration_inherited; suggested_tolerance is the row's own, "
+                "factor x (budget - inherited)"),
     "ok": f"budget <= tolerance and margin <= {BLIND_MARGIN:g}",
     "tight": "tolerance < budget",
     "blind": f"margin > {BLIND_MARGIN:g}",
@@ -131,6 +143,12 @@ class Budget:
     integration_error: Mapping[str, float | None]
     why: str = ""  # the row's present why
     unit: str = ""
+    #: a phase of a chained flight: d0, the difference the engines carry in, part of both the
+    #: model difference and `tolerance` (the row's own tolerance + d0, as it is checked); the
+    #: integration errors are then what each engine's step adds in the phase to the d0 between
+    #: its run and its refined run (engine → that d0: `integration_inherited`)
+    inherited: float = 0.0
+    integration_inherited: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def complete(self) -> bool:
@@ -154,8 +172,10 @@ class Budget:
 
     def suggested_tolerance(self, factor: float = SUGGEST_FACTOR) -> float | None:
         """factor × budget rounded up to SUGGEST_DIGITS significant figures; None when the
-        budget is 0 or not finite (nothing to scale)."""
-        b = self.budget
+        budget is 0 or not finite (nothing to scale).  A chained row's is the row's own
+        tolerance, to which its check adds d0: factor × (budget − d0), what the phase and the
+        engines' steps add to what it inherits."""
+        b = self.budget - self.inherited
         return round_up(factor * b) if 0 < b < math.inf else None
 
     def suggested_why(self, refinements: Mapping[str, str], factor: float = SUGGEST_FACTOR,
@@ -168,6 +188,10 @@ class Budget:
             how = f" ({refinements[e]})" if v is not None and refinements.get(e) else ""
             parts.append(f"{e} integration {_g(v)}{how}")
         bound = "" if self.complete else " (a lower bound)"
+        if self.inherited:
+            return (f"budget {_g(self.budget)}{self.unit}{bound}: {', '.join(parts)}, of which d0 = "
+                    f"{_g(self.inherited)} inherited; tolerance = {factor:g} × (budget − d0), checked "
+                    f"against tolerance + d0 ({source})")
         return (f"budget {_g(self.budget)}{self.unit}{bound}: {', '.join(parts)}; "
                 f"tolerance = {factor:g} × budget ({source})")
 
@@ -180,6 +204,9 @@ class Budget:
                                       for e, v in self.integration_error.items()},
                 "budget": json_number(self.budget), "complete": self.complete,
                 "margin": json_number(self.margin), "verdict": self.verdict,
+                **({"inherited": json_number(self.inherited)} if self.inherited else {}),
+                **({"integration_inherited": {e: json_number(v) for e, v in self.integration_inherited.items()}}
+                   if self.integration_inherited else {}),
                 "suggested_tolerance": tol,
                 "suggested_why": None if tol is None else self.suggested_why(refinements or {}, suggest.factor,
                                                                              suggest.source),
@@ -187,25 +214,91 @@ class Budget:
 
 
 def budget_rows(variant: Case, runs: Mapping[str, EngineRun], refined: Mapping[str, EngineRun | None],
-                engines: Sequence[str]) -> list[Budget]:
-    """The budget of every [compare] row of `variant` (the case variant that was run) for
-    each pair of `engines` (the first against each other, `compare.engine_pairs`), from each
-    engine's run at the case's settings (`runs`) and refined (`refined`; an engine absent
-    or None there: its integration error is not measured).  Every figure is the row's own
-    metric through `compare.check_runs`, so the model difference is the error `rsmcheck
-    check` reports."""
-    integration: dict[str, list[float | None]] = {}
+                engines: Sequence[str], specs: Sequence[Any] | None = None, chained: bool = False) -> list[Budget]:
+    """The budget of every [compare] row of `variant` (the case variant that was run; or of
+    `specs` in its place) for each pair of `engines` (the first against each other,
+    `compare.engine_pairs`), from each engine's run at the case's settings (`runs`) and
+    refined (`refined`; an engine absent or None there: its integration error is not
+    measured).  Every figure is the row's own metric through `compare.check_runs` (with
+    `chained`, a phase of a chained flight: the tolerance plus the difference the engines
+    carry in), so the model difference is the error `rsmcheck check` or the report's
+    mission rows report."""
+    integration: dict[str, list[Any] | None] = {}
     for e in engines:
         fine = refined.get(e)
-        integration[e] = (None if fine is None
-                          else [r.error for r in check_runs(variant, runs[e], fine)])
+        integration[e] = None if fine is None else check_runs(variant, runs[e], fine, chained, specs)
     out = []
     for a, b in engine_pairs(list(engines)):
-        for i, row in enumerate(check_runs(variant, runs[a], runs[b])):
+        for i, row in enumerate(check_runs(variant, runs[a], runs[b], chained, specs)):
+            # chained: what each engine's step adds in the phase to the d0 between its run and its
+            # refined run, as the model difference is d0 plus what the phase adds
+            ie = {e: None if integration[e] is None else max(integration[e][i].error - integration[e][i].inherited,
+                                                             0.0) for e in (a, b)}
+            carried = {e: integration[e][i].inherited for e in (a, b) if integration[e] is not None and chained}
             out.append(Budget(variant.name, row.observable, row.metric_label, (a, b), row.tolerance, row.error,
-                              {e: None if integration[e] is None else integration[e][i] for e in (a, b)},
-                              row.why, _unit(row.observable, row.metric)))
+                              ie, row.why, _unit(row.observable, row.metric), row.inherited, carried))
     return out
+
+
+def sequence_budget_rows(sequence: Case, short: bool, runs: Mapping[str, EngineRun],
+                         refined: Mapping[str, EngineRun | None], engines: Sequence[str]) -> list[Budget]:
+    """The budget of every row a sequence's chained flight is checked by, as the report's
+    mission rows (`collect.mission_checks`): each phase cut from the flights
+    (`collect.phase_runs`), by its own rows and those the sequence file replaces
+    (`collect.phase_specs`), chained.  `runs`, `refined`: engine → the whole flight at the
+    phases' settings and refined (each phase by its plug-in's `refined_options`); rows
+    named "SEQUENCE/PHASE"."""
+    cut = {e: phase_runs(sequence, short, r) for e, r in runs.items()}
+    cut_fine = {e: None if r is None else phase_runs(sequence, short, r) for e, r in refined.items()}
+    out = []
+    for k, (phase, _, _) in enumerate(cut[engines[0]]):
+        pieces = {e: cut[e][k][2] for e in engines}
+        fine = {e: None if cut_fine.get(e) is None else cut_fine[e][k][2] for e in engines}
+        out += [replace(b, case=f"{sequence.name}/{phase.name}")
+                for b in budget_rows(phase, pieces, fine, engines, phase_specs(sequence, short, phase), chained=True)]
+    return out
+
+
+def _not_budgeted(case: Case, short: bool) -> str:
+    """Why `case` has no rows to budget ('' when it has): as `compare.not_checked`, but a
+    sequence is budgeted by its phases' rows in the chained flight."""
+    if not case.phases:
+        return not_checked(case, short)
+    return "" if any(phase.compare for phase in _phase_variants(case, short)) else "no phase has [compare] rows"
+
+
+def _phase_variants(sequence: Case, short: bool) -> list[Case]:
+    variant = sequence.variant(short)
+    return [load_case(sibling_case(p, Path(sequence.path))).variant(short) for p in variant.phases]
+
+
+def _refined_options(engine: str, case: Case, short: bool) -> dict[str, Any] | None:
+    """The options of `engine`'s refined run of `case`: its plug-in's `refined_options` of
+    the variant; of a sequence, phase name → those of each phase (None: not declared)."""
+    if not case.phases:
+        return refined_options(engine, case.variant(short))
+    per_phase = {ph.name: refined_options(engine, ph) for ph in _phase_variants(case, short)}
+    return None if any(o is None for o in per_phase.values()) else per_phase
+
+
+def _job(engine: str, case: Case, short: bool, workdir: str, refined: bool) -> tuple[Callable[..., Any], tuple]:
+    """The call of one budget run: a stand-alone case through `runs.run_engine`, a sequence
+    flown through `runs.run_sequence`, each phase refined at its own settings."""
+    if not case.phases:
+        return run_engine, (engine, case.variant(short), _refined_options(engine, case, short) if refined else {})
+    return run_sequence, (engine, case, short, workdir, {}, partial(refined_options, engine) if refined else None)
+
+
+def _options_text(opts: Mapping[str, Any]) -> str:
+    """'rtol=1e-09, h_max=0.0005'; a sequence's per-phase options by phase only where they differ."""
+    def flat(o: Mapping[str, Any]) -> str:
+        return ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in o.items())
+    if opts and all(isinstance(v, Mapping) for v in opts.values()):
+        texts = {p: flat(o) for p, o in opts.items()}
+        if len(set(texts.values())) == 1:
+            return next(iter(texts.values())) + " in every phase"
+        return "; ".join(f"{p}: {t}" for p, t in texts.items())
+    return flat(opts)
 
 
 # ---------------------------------------------------------------------------------------
@@ -264,32 +357,32 @@ def measure(cases: Sequence[Case], short: bool, engines: Sequence[str] | None = 
     there when made.  A case without [compare] rows is returned with `skipped` set and
     nothing run."""
     engines = list(engines or default_engines())
-    out = [CaseBudget(c, short, skipped=not_checked(c, short), engines=tuple(engines)) for c in cases]
+    out = [CaseBudget(c, short, skipped=_not_budgeted(c, short), engines=tuple(engines)) for c in cases]
     todo = [cb for cb in out if not cb.skipped]
-    fine = {(cb.name, e): refined_options(e, cb.variant) for cb in todo for e in engines}
+    fine = {(cb.name, e): _refined_options(e, cb.case, short) for cb in todo for e in engines}
     digest = source_digest() if run_dir is not None else None
     at_settings = {e: {} for e in engines}
     stored = {cb.name: reusable(run_dir, cb.case, short, at_settings, digest) if run_dir is not None else {}
               for cb in todo}
-    jobs = []
-    for cb in todo:
-        cb.not_measured = tuple(e for e in engines if fine[(cb.name, e)] is None)
-        for e in engines:
-            wall = expected_wall(cb.case, e)
-            if e not in stored[cb.name]:
-                jobs.append(Job(f"{cb.name} / {e} at the case's settings", run_engine, (e, cb.variant, {}), wall,
-                                (cb.name, e, False)))
-            opts = fine[(cb.name, e)]
-            if opts is not None:
-                what = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in opts.items())
-                jobs.append(Job(f"{cb.name} / {e} refined ({what}: {plugin(e).refinement})", run_engine,
-                                (e, cb.variant, opts), 2 * wall, (cb.name, e, True)))
-    reused = [f"{name} / {e}" for name, have in stored.items() for e in have]
-    if progress and jobs:
-        progress(f"{len(jobs)} runs " + executor.describe(workers)
-                 + (f"; stored runs reused: {', '.join(reused)}" if reused else ""))
-    outcomes = run_jobs(jobs, progress, workers)
-    got = {job.key: outcomes[job] for job in jobs}
+    with tempfile.TemporaryDirectory(prefix="rsmcheck-budget-") as workdir:
+        jobs = []
+        for cb in todo:
+            cb.not_measured = tuple(e for e in engines if fine[(cb.name, e)] is None)
+            for e in engines:
+                wall = expected_wall(cb.case, e)
+                if e not in stored[cb.name]:
+                    jobs.append(Job(f"{cb.name} / {e} at the case's settings", *_job(e, cb.case, short, workdir, False),
+                                    wall, (cb.name, e, False)))
+                opts = fine[(cb.name, e)]
+                if opts is not None:
+                    jobs.append(Job(f"{cb.name} / {e} refined ({_options_text(opts)}: {plugin(e).refinement})",
+                                    *_job(e, cb.case, short, workdir, True), 2 * wall, (cb.name, e, True)))
+        reused = [f"{name} / {e}" for name, have in stored.items() for e in have]
+        if progress and jobs:
+            progress(f"{len(jobs)} runs " + executor.describe(workers)
+                     + (f"; stored runs reused: {', '.join(reused)}" if reused else ""))
+        outcomes = run_jobs(jobs, progress, workers)
+    got = {job.key: _whole(outcomes[job]) for job in jobs}
     for cb in todo:
         runs: dict[str, EngineRun] = dict(stored[cb.name])
         walls = {e: float(r.solver.get("wall_s", math.nan)) for e, r in runs.items()}
@@ -314,8 +407,17 @@ def measure(cases: Sequence[Case], short: bool, engines: Sequence[str] | None = 
                           "refined": None if oc is None else _record(
                               e, cb.variant, fine[(cb.name, e)], fine_runs[e], oc.wall_s, plugin(e).refinement)}
         if len(runs) == len(engines):
-            cb.rows = budget_rows(cb.variant, runs, fine_runs, engines)
+            cb.rows = (sequence_budget_rows(cb.case, short, runs, fine_runs, engines) if cb.case.phases
+                       else budget_rows(cb.variant, runs, fine_runs, engines))
     return out
+
+
+def _whole(outcome: Outcome) -> Outcome:
+    """A sequence's outcome with the whole flight as its value (`runs.SequenceRun.run`), as
+    it is stored and cut into phases."""
+    if outcome.error is None and isinstance(outcome.value, SequenceRun):
+        return replace(outcome, value=outcome.value.run)
+    return outcome
 
 
 # ---------------------------------------------------------------------------------------
@@ -399,13 +501,15 @@ def table_lines(cb: CaseBudget) -> list[str]:
     for r in cb.rows:
         if r.engines not in pairs:
             pairs.append(r.engines)
+    labels = [r.observable if r.case == cb.name else f"{r.case.split('/', 1)[1]}: {r.observable}" for r in cb.rows]
+    w = max([18, *map(len, labels)])
     for a, b in pairs:
         lines.append(f"  {a} against {b}: model difference d({a}, {b}); integration error of X: d(X, X refined)")
-        lines.append(f"  {'observable':18s} {'metric':20s} {'tolerance':>9s} {'model':>9s} {a[:9]:>9s} {b[:9]:>9s} "
+        lines.append(f"  {'observable':{w}s} {'metric':20s} {'tolerance':>9s} {'model':>9s} {a[:9]:>9s} {b[:9]:>9s} "
                      f"{'budget':>9s} {'margin':>7s}  verdict")
-        for r in (r for r in cb.rows if r.engines == (a, b)):
+        for r, label in ((r, label) for r, label in zip(cb.rows, labels) if r.engines == (a, b)):
             m = r.margin
-            lines.append(f"  {r.observable:18s} {r.metric:20s} {r.tolerance:9.2e} {_e(r.model_difference):>9s} "
+            lines.append(f"  {label:{w}s} {r.metric:20s} {r.tolerance:9.2e} {_e(r.model_difference):>9s} "
                          f"{_e(r.integration_error[a]):>9s} {_e(r.integration_error[b]):>9s} {_e(r.budget):>9s} "
                          f"{'inf' if m == math.inf else f'{m:.3g}':>7s}  {r.verdict}"
                          + ("" if r.complete else " (lower bound)"))
@@ -420,17 +524,19 @@ def suggestion_lines(cb: CaseBudget, suggest: Suggest = Suggest()) -> list[str]:
         tol = r.suggested_tolerance(suggest.factor)
         pair = f" ({r.engines[0]} against {r.engines[1]})" if len(cb.engines) > 2 else ""
         if tol is None:
-            lines.append(f"  {cb.name} {r.observable}{pair}: no suggestion (budget {_e(r.budget)})")
+            lines.append(f"  {r.case} {r.observable}{pair}: no suggestion (budget {_e(r.budget)})")
             continue
-        lines.append(f"  {cb.name} {r.observable}{pair}: tolerance {r.tolerance:.2g} -> {tol:.2g}")
+        lines.append(f"  {r.case} {r.observable}{pair}: tolerance {r.tolerance - r.inherited:.2g} -> {tol:.2g}"
+                     + (f" (checked against it + d0 = {r.inherited:.2g})" if r.inherited else ""))
         lines.append(f"      why = \"{r.suggested_why(refinements, suggest.factor, suggest.source)}\"")
     return lines
 
 
 def suggestions(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, tuple[float, str]]:
     """observable → (suggested tolerance, why) of the rows `--apply` may write: a case whose
-    runs all ran, one pair of engines, every part of the budget measured and not zero."""
-    if cb.failures or len(cb.engines) != 2:
+    runs all ran, one pair of engines, every part of the budget measured and not zero; none
+    of a sequence (its phase rows are written by hand, docs/cases.md §6)."""
+    if cb.failures or len(cb.engines) != 2 or cb.case.phases:
         return {}
     refinements = cb.refinements()
     return {r.observable: (tol, r.suggested_why(refinements, suggest.factor, suggest.source)) for r in cb.rows

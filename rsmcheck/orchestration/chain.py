@@ -160,6 +160,8 @@ def start_of(state: Mapping[str, Any]) -> StartState:
 # running cases
 # ---------------------------------------------------------------------------------------
 ProgressFactory = Callable[[str, str], Any]
+#: a phase's variant → the engine options of that phase
+PhaseOptions = Callable[[Case], Mapping[str, Any]]
 
 
 def run_case(name_or_case: str | Case, engines: Sequence[str], short: bool, out_dir: str | Path,
@@ -228,14 +230,17 @@ def use_stored_start(variant: Case, src: Path, short: bool) -> bool:
 def run_mission(mission: Case, engines: Sequence[str], short: bool, out: Path,
                 progress: ProgressFactory | None = None,
                 options: Mapping[str, Mapping[str, Any]] | None = None,
-                phase_runs: dict[str, dict[str, EngineRun]] | None = None) -> Path:
+                phase_runs: dict[str, dict[str, EngineRun]] | None = None,
+                phase_options: Mapping[str, PhaseOptions] | None = None) -> Path:
     """All phases of `mission` (the variant to run) in sequence, each from the previous
     one's end state (each phase's short variant with `short`); one run file.  With
-    `phase_runs`, each phase's own run is also put there (phase name → engine → run)."""
+    `phase_runs`, each phase's own run is also put there (phase name → engine → run);
+    `options` and `phase_options`: engine → what `fly` takes."""
     runs: dict[str, EngineRun] = {}
     states: dict[str, dict] = {}
     for name in engines:
-        pieces, states[name] = fly(mission, name, short, progress, (options or {}).get(name, {}))
+        pieces, states[name] = fly(mission, name, short, progress, (options or {}).get(name, {}),
+                                   (phase_options or {}).get(name))
         runs[name] = _concatenate(name, pieces)
         if phase_runs is not None:
             for (_, r), phase in zip(pieces, mission.phases):
@@ -249,15 +254,19 @@ def run_mission(mission: Case, engines: Sequence[str], short: bool, out: Path,
 
 
 def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory | None = None,
-        options: Mapping[str, Any] | None = None) -> tuple[list[tuple[float, EngineRun]], dict]:
+        options: Mapping[str, Any] | None = None,
+        phase_options: PhaseOptions | None = None) -> tuple[list[tuple[float, EngineRun]], dict]:
     """One engine through the phases of `mission` (the variant to run): [(start time in the
-    mission, the phase's run)], and the end state of the last phase."""
+    mission, the phase's run)], and the end state of the last phase.  The engine of every
+    phase takes `options`, and those `phase_options(phase variant)` gives for that phase
+    (e.g. a finer run of each phase at its own settings: `rsmcheck budget`)."""
     pieces: list[tuple[float, EngineRun]] = []
     state = None
     offset = 0.0
     for p in mission.phases:
         ph = load_case(sibling_case(p, Path(mission.path))).variant(short)
-        engine = make_engine(engine_name, ph, None if state is None else start_of(state), **dict(options or {}))
+        opts = {**dict(options or {}), **(dict(phase_options(ph)) if phase_options is not None else {})}
+        engine = make_engine(engine_name, ph, None if state is None else start_of(state), **opts)
         r = run(engine, ph, ph.duration, progress(engine_name, ph.name) if progress else None)
         pieces.append((offset, r))
         state = end_state(engine, ph.params)

@@ -248,14 +248,17 @@ class SequenceRun:
 
 
 def run_sequence(engine: str, case: Case, short: bool, workdir: str,
-                 options: Mapping[str, Any] | None = None) -> SequenceRun:
+                 options: Mapping[str, Any] | None = None,
+                 phase_options: Callable[[Case], Mapping[str, Any]] | None = None) -> SequenceRun:
     """Fly `case` (a sequence, the base case) in `engine`, its phases chained
-    (rsmcheck.orchestration.chain.run_mission, into `workdir`)."""
+    (rsmcheck.orchestration.chain.run_mission, into `workdir`); every phase's engine takes
+    `options` and what `phase_options(phase variant)` gives."""
     out = Path(workdir) / f"{case.name}.{engine}"
     phases: dict[str, dict[str, EngineRun]] = {}
     runs, _ = read_run(run_mission(case.variant(short), [engine], short, out,
                                    options={engine: dict(options or {})} if options else None,
-                                   phase_runs=phases))
+                                   phase_runs=phases,
+                                   phase_options={engine: phase_options} if phase_options else None))
     return SequenceRun(runs[engine], {p: r[engine] for p, r in phases.items()})
 
 

@@ -16,7 +16,7 @@ import pytest
 
 import rsmcheck.orchestration.budget as bud
 import rsmcheck.orchestration.runs as runs_mod
-from rsmcheck.orchestration import case_edit
+from rsmcheck.orchestration import case_edit, collect
 from rsmcheck.cli import main
 from rsmcheck.core.cases import CompareSpec, load_case
 from rsmcheck.core.observables import allocate
@@ -363,3 +363,78 @@ def test_apply_writes_the_suggestions_into_the_case_file(fake_engines, tmp_path,
         assert spec.tolerance == rows[spec.observable]["suggested_tolerance"]
         assert spec.why == rows[spec.observable]["suggested_why"] and str(out) in spec.why
     assert load_case(str(cases / "p1_copy.toml")).compare == load_case("p1_rigid_gains").compare  # full rows kept
+
+
+# ---------------------------------------------------------------------------------------
+# a sequence: its phases' rows in the chained flight
+# ---------------------------------------------------------------------------------------
+@pytest.fixture
+def fake_flights(monkeypatch):
+    """run_sequence replaced by whole flights of the sequence's phases (each phase's samples
+    from its own t = 0, concatenated as `chain.run_mission` does) with SYNTHETIC offsets, a
+    refined flight's from its second sample on (it starts where the unrefined one does);
+    the flights listed with each phase's options."""
+    flights = []
+
+    def fly(engine, case, short, workdir, options=None, phase_options=None):
+        phases = [load_case(p).variant(short) for p in case.variant(short).phases]
+        flights.append((engine, {ph.name: dict(phase_options(ph)) if phase_options else {} for ph in phases}))
+        offset, _ = SYNTHETIC[(engine, phase_options is not None)]
+        pieces, t0 = [], 0.0
+        for ph in phases:
+            pieces.append(t0 + np.round(np.arange(round(ph.duration / ph.solver.output_period) + 1)
+                                        * ph.solver.output_period, 12))
+            t0 += ph.duration
+        run = _run(engine, np.concatenate(pieces), offset, 0.0)
+        for key in ("ee1_pos_B", "ee2_pos_B"):
+            run.observables[key][0] = SYNTHETIC[(engine, False)][0]
+        return runs_mod.SequenceRun(run, {})
+
+    monkeypatch.setattr(bud, "run_sequence", fly)
+    return flights
+
+
+def test_a_sequence_is_budgeted_by_its_phases_rows_in_the_chained_flight(fake_engines, fake_flights, tmp_path,
+                                                                         capsys):
+    """mission --short: each engine flown twice, the refined flight with every phase at its
+    own plug-in refinement (p2's rtol is not p3's); every row the report checks the chained
+    phases by (their own and the replaced ones), named "mission/PHASE", with the difference
+    the engines carry in (d0) added to the tolerance as in the report, and as integration
+    errors what each refined flight departs by in the phase beyond where it entered it;
+    --apply writes nothing into the sequence file and says so."""
+    out = tmp_path / "budget.json"
+    mission = load_case("mission")
+    before = open(mission.path, encoding="utf-8").read()
+    assert main(["budget", "mission", "--short", "--serial", "--apply", "--out", str(out)]) in (0, 1)
+    assert fake_engines == [] and sorted(e for e, _ in fake_flights) == sorted([A, A, B, B])
+    phases = [load_case(p).variant(True) for p in mission.variant(True).phases]
+    for engine in (A, B):
+        refined = [opts for e, opts in fake_flights if e == engine and any(opts.values())]
+        assert refined == [{ph.name: plugin(engine).refined_options(ph) for ph in phases}]
+    assert refined[0]["p2_capture_regrasp"] == refined[0]["p3_com_alignment"]  # Exudyn: half step in both
+    ref_refined = next(opts for e, opts in fake_flights if e == A and any(opts.values()))
+    assert ref_refined["p2_capture_regrasp"]["rtol"] != ref_refined["p3_com_alignment"]["rtol"]
+
+    entry = json.loads(out.read_text())["variants"]["short"]["mission"]
+    expected = [(f"mission/{ph.name}", s.observable, s.tolerance)
+                for ph in phases for s in collect.phase_specs(mission, True, ph)]
+    assert [(r["case"], r["observable"]) for r in entry["rows"]] == [(c, o) for c, o, _ in expected]
+    for r, (_, obs, tol) in zip(entry["rows"], expected):
+        if obs in ("ee1_pos_B", "ee2_pos_B"):  # offset everywhere: d0 = the model difference
+            assert r["model_difference"] == pytest.approx(2e-8) and r["inherited"] == pytest.approx(2e-8)
+            assert r["tolerance"] == pytest.approx(tol + 2e-8)
+            if r["case"] == "mission/p2_capture_regrasp":  # the refined flights depart in the first phase
+                assert r["integration_error"] == {A: pytest.approx(1e-9), B: pytest.approx(2e-8)}
+                assert r["integration_inherited"] == {A: 0, B: 0}
+                # the row's own tolerance: 3 × what the phase and the steps add to d0 (2.1e-8)
+                assert r["suggested_tolerance"] == 6.3e-8 and "3 × (budget − d0)" in r["suggested_why"]
+            else:  # and carry that into the later ones, which add nothing
+                assert r["integration_error"] == {A: 0, B: 0}
+                assert r["integration_inherited"] == {A: pytest.approx(1e-9), B: pytest.approx(2e-8)}
+                assert r["budget"] == pytest.approx(2e-8) and r["suggested_tolerance"] is None
+        else:
+            assert r["model_difference"] == 0 and r["tolerance"] == tol
+    stdout = capsys.readouterr().out
+    assert "p2_capture_regrasp: ee1_pos_B" in stdout and "mission/p2_capture_regrasp ee1_pos_B" not in stdout
+    assert "mission.toml: nothing set: a sequence's phase rows" in stdout
+    assert open(mission.path, encoding="utf-8").read() == before

@@ -36,3 +36,29 @@ def test_the_quiet_integrators_steps_are_summed_from_the_first_phase_that_has_on
               (2.0, _phase(1.0, {"steps": 30, "quiet_steps": 5}))]
     run = _concatenate("reference", phases)
     assert run.solver == {"steps": 60, "quiet_steps": 12}
+
+
+def test_each_phase_of_a_flight_takes_the_common_options_and_its_own(monkeypatch):
+    """`fly(..., options, phase_options)`: every phase's engine is made with the common
+    options and what phase_options gives for that phase's variant (a budget's refined
+    flight: each phase at a tenth of its own rtol), in the sequence's order."""
+    from rsmcheck.core.cases import load_case
+    from rsmcheck.core.plugins import settings_of
+    from rsmcheck.orchestration import chain
+
+    made = []
+
+    def make(engine_name, case, start, **opts):
+        made.append((case.name, opts))
+        return object()
+
+    monkeypatch.setattr(chain, "make_engine", make)
+    monkeypatch.setattr(chain, "run", lambda engine, case, duration, progress=None: _phase(duration, {}))
+    monkeypatch.setattr(chain, "end_state", lambda engine, params: {})
+    monkeypatch.setattr(chain, "start_of", lambda state: None)
+    mission = load_case("mission").variant(True)
+    chain.fly(mission, "reference", True, None, {"n_modes": 2}, lambda ph: {"rtol": settings_of(ph, "reference").rtol / 10})
+    assert [name for name, _ in made] == list(mission.phases)
+    rtols = {p: settings_of(load_case(p).variant(True), "reference").rtol / 10 for p in mission.phases}
+    assert made == [(p, {"n_modes": 2, "rtol": rtols[p]}) for p in mission.phases]
+    assert rtols["p2_capture_regrasp"] != rtols["p3_com_alignment"]  # the phases differ: the test can tell
