@@ -52,14 +52,14 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from rsmcheck.core.cases import Case, load_case, sibling_case
+from rsmcheck.core.cases import Case
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import OBSERVABLES
 from rsmcheck.core.plugins import default_engines, plugin, refined_options, settings_of
 from rsmcheck.core.store import EngineRun, git_commit, json_number, machine, write_json
 from rsmcheck.orchestration import executor
 from rsmcheck.orchestration.compare import check_runs, engine_pairs, not_checked
-from rsmcheck.orchestration.collect import phase_runs, phase_specs
+from rsmcheck.orchestration.collect import phase_runs, phase_specs, phase_variants
 from rsmcheck.orchestration.runs import (Job, Outcome, SequenceRun, add_runs, expected_wall, reusable, run_engine,
                                          run_jobs, run_sequence, source_digest)
 
@@ -264,12 +264,7 @@ def _not_budgeted(case: Case, short: bool) -> str:
     sequence is budgeted by its phases' rows in the chained flight."""
     if not case.phases:
         return not_checked(case, short)
-    return "" if any(phase.compare for phase in _phase_variants(case, short)) else "no phase has [compare] rows"
-
-
-def _phase_variants(sequence: Case, short: bool) -> list[Case]:
-    variant = sequence.variant(short)
-    return [load_case(sibling_case(p, Path(sequence.path))).variant(short) for p in variant.phases]
+    return "" if any(phase.compare for phase in phase_variants(case, short)) else "no phase has [compare] rows"
 
 
 def _refined_options(engine: str, case: Case, short: bool) -> dict[str, Any] | None:
@@ -277,15 +272,17 @@ def _refined_options(engine: str, case: Case, short: bool) -> dict[str, Any] | N
     the variant; of a sequence, phase name → those of each phase (None: not declared)."""
     if not case.phases:
         return refined_options(engine, case.variant(short))
-    per_phase = {ph.name: refined_options(engine, ph) for ph in _phase_variants(case, short)}
+    per_phase = {ph.name: refined_options(engine, ph) for ph in phase_variants(case, short)}
     return None if any(o is None for o in per_phase.values()) else per_phase
 
 
-def _job(engine: str, case: Case, short: bool, workdir: str, refined: bool) -> tuple[Callable[..., Any], tuple]:
-    """The call of one budget run: a stand-alone case through `runs.run_engine`, a sequence
-    flown through `runs.run_sequence`, each phase refined at its own settings."""
+def _job(engine: str, case: Case, short: bool, workdir: str,
+         refined: Mapping[str, Any] | None) -> tuple[Callable[..., Any], tuple]:
+    """The call of one budget run, at the case's settings or (`refined`, `_refined_options`)
+    refined: a stand-alone case through `runs.run_engine`, a sequence flown through
+    `runs.run_sequence`, each phase refined at its own settings."""
     if not case.phases:
-        return run_engine, (engine, case.variant(short), _refined_options(engine, case, short) if refined else {})
+        return run_engine, (engine, case.variant(short), dict(refined or {}))
     return run_sequence, (engine, case, short, workdir, {}, partial(refined_options, engine) if refined else None)
 
 
@@ -371,12 +368,12 @@ def measure(cases: Sequence[Case], short: bool, engines: Sequence[str] | None = 
             for e in engines:
                 wall = expected_wall(cb.case, e)
                 if e not in stored[cb.name]:
-                    jobs.append(Job(f"{cb.name} / {e} at the case's settings", *_job(e, cb.case, short, workdir, False),
+                    jobs.append(Job(f"{cb.name} / {e} at the case's settings", *_job(e, cb.case, short, workdir, None),
                                     wall, (cb.name, e, False)))
                 opts = fine[(cb.name, e)]
                 if opts is not None:
                     jobs.append(Job(f"{cb.name} / {e} refined ({_options_text(opts)}: {plugin(e).refinement})",
-                                    *_job(e, cb.case, short, workdir, True), 2 * wall, (cb.name, e, True)))
+                                    *_job(e, cb.case, short, workdir, opts), 2 * wall, (cb.name, e, True)))
         reused = [f"{name} / {e}" for name, have in stored.items() for e in have]
         if progress and jobs:
             progress(f"{len(jobs)} runs " + executor.describe(workers)

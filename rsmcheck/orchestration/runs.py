@@ -41,7 +41,7 @@ from typing import Any, Callable, Mapping, Sequence
 from rsmcheck.core.cases import Case, load_case, sibling_case
 from rsmcheck.core.errors import InputError, SimulationDiverged
 from rsmcheck.orchestration import executor
-from rsmcheck.orchestration.chain import run_mission
+from rsmcheck.orchestration.chain import PhaseOptions, run_mission
 from rsmcheck.core.plugins import make_engine, plugins
 from rsmcheck.driver.runner import run
 from rsmcheck.core.store import EngineRun, read_run, write_run
@@ -249,7 +249,7 @@ class SequenceRun:
 
 def run_sequence(engine: str, case: Case, short: bool, workdir: str,
                  options: Mapping[str, Any] | None = None,
-                 phase_options: Callable[[Case], Mapping[str, Any]] | None = None) -> SequenceRun:
+                 phase_options: PhaseOptions | None = None) -> SequenceRun:
     """Fly `case` (a sequence, the base case) in `engine`, its phases chained
     (rsmcheck.orchestration.chain.run_mission, into `workdir`); every phase's engine takes
     `options` and what `phase_options(phase variant)` gives."""
