@@ -258,6 +258,12 @@ def sibling_case(name: str, path: Path) -> Path:
     return near if near.is_file() else case_path(name)
 
 
+def phase_cases(sequence: Case, short: bool) -> list[Case]:
+    """The phases of `sequence` (a sequence case or its variant), each the variant to run:
+    with `short`, each phase's short variant, in the order of the sequence's short phases."""
+    return [load_case(sibling_case(p, Path(sequence.path))).variant(short) for p in sequence.variant(short).phases]
+
+
 def list_cases() -> list[Path]:
     """Every case file (`case_index`), by name."""
     return [path for _, path in sorted(case_index().items())]

@@ -52,14 +52,14 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from rsmcheck.core.cases import Case
+from rsmcheck.core.cases import Case, phase_cases
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import OBSERVABLES
 from rsmcheck.core.plugins import default_engines, plugin, refined_options, settings_of
 from rsmcheck.core.store import EngineRun, git_commit, json_number, machine, write_json
 from rsmcheck.orchestration import executor
 from rsmcheck.orchestration.compare import check_runs, engine_pairs, not_checked
-from rsmcheck.orchestration.collect import phase_runs, phase_specs, phase_variants
+from rsmcheck.orchestration.collect import phase_runs, phase_specs
 from rsmcheck.orchestration.runs import (Job, Outcome, SequenceRun, add_runs, expected_wall, reusable, run_engine,
                                          run_jobs, run_sequence, source_digest)
 
@@ -264,7 +264,7 @@ def _not_budgeted(case: Case, short: bool) -> str:
     sequence is budgeted by its phases' rows in the chained flight."""
     if not case.phases:
         return not_checked(case, short)
-    return "" if any(phase.compare for phase in phase_variants(case, short)) else "no phase has [compare] rows"
+    return "" if any(phase.compare for phase in phase_cases(case, short)) else "no phase has [compare] rows"
 
 
 def _refined_options(engine: str, case: Case, short: bool) -> dict[str, Any] | None:
@@ -272,7 +272,7 @@ def _refined_options(engine: str, case: Case, short: bool) -> dict[str, Any] | N
     the variant; of a sequence, phase name → those of each phase (None: not declared)."""
     if not case.phases:
         return refined_options(engine, case.variant(short))
-    per_phase = {ph.name: refined_options(engine, ph) for ph in phase_variants(case, short)}
+    per_phase = {ph.name: refined_options(engine, ph) for ph in phase_cases(case, short)}
     return None if any(o is None for o in per_phase.values()) else per_phase
 
 

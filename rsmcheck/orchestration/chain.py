@@ -39,7 +39,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from rsmcheck.core.cases import Case, list_cases, load_case, sibling_case
+from rsmcheck.core.cases import Case, list_cases, load_case, phase_cases
 from rsmcheck.core.engine import Inputs
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.geometry import rot
@@ -263,8 +263,7 @@ def fly(mission: Case, engine_name: str, short: bool, progress: ProgressFactory 
     pieces: list[tuple[float, EngineRun]] = []
     state = None
     offset = 0.0
-    for p in mission.phases:
-        ph = load_case(sibling_case(p, Path(mission.path))).variant(short)
+    for ph in phase_cases(mission, short):
         opts = {**dict(options or {}), **(dict(phase_options(ph)) if phase_options is not None else {})}
         engine = make_engine(engine_name, ph, None if state is None else start_of(state), **opts)
         r = run(engine, ph, ph.duration, progress(engine_name, ph.name) if progress else None)

@@ -36,7 +36,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from rsmcheck.core.cases import Case, list_cases, load_case, sibling_case
+from rsmcheck.core.cases import Case, list_cases, load_case, phase_cases
 from rsmcheck.orchestration.compare import case_rows, check_runs, engine_pairs
 from rsmcheck.core.plugins import (available, default_engines, given_settings, plugin, plugin_distributions,
                                    with_capability)
@@ -128,11 +128,6 @@ def _stored_current(path: Path, digest: str) -> bool:
 # ---------------------------------------------------------------------------------------
 # the verdict: every check row, from the stored runs
 # ---------------------------------------------------------------------------------------
-def phase_variants(sequence: Case, short: bool) -> list[Case]:
-    """The phase cases of `sequence` (its variant's phases, each the variant to run)."""
-    return [load_case(sibling_case(p, Path(sequence.path))).variant(short) for p in sequence.variant(short).phases]
-
-
 def phase_runs(mission: Case, short: bool, run: EngineRun) -> list[tuple[Case, float, EngineRun]]:
     """The mission run cut into its phases: (the phase case's variant, its start time in the
     mission, the phase's run on phase-local time), in order.
@@ -140,7 +135,7 @@ def phase_runs(mission: Case, short: bool, run: EngineRun) -> list[tuple[Case, f
     `rsmcheck.orchestration.chain.run_mission` concatenates the phases' runs, each from its own t = 0: the
     last sample of one phase and the first of the next have the same mission time, and each
     belongs to its own phase."""
-    phases = phase_variants(mission, short)
+    phases = phase_cases(mission, short)
     t = np.asarray(run.observables["time"], float)
     first = [0]
     t_start = 0.0

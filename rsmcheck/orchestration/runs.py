@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from rsmcheck.core.cases import Case, load_case, sibling_case
+from rsmcheck.core.cases import Case, phase_cases, sibling_case
 from rsmcheck.core.errors import InputError, SimulationDiverged
 from rsmcheck.orchestration import executor
 from rsmcheck.orchestration.chain import PhaseOptions, run_mission
@@ -130,8 +130,7 @@ def expected_wall(case: Case, engine: str) -> float:
     """The wall time the case's golden recorded for `engine` [s] (0 without one; a sequence:
     the sum over its phases).  Only orders the jobs, longest first."""
     if case.phases:
-        return sum(expected_wall(load_case(sibling_case(p, Path(case.path))), engine)
-                   for p in case.variant(True).phases)
+        return sum(expected_wall(phase, engine) for phase in phase_cases(case, True))
     path = golden_path(case.name, engine)
     try:
         return float(read_run(path)[0][engine].solver.get("wall_s", 0.0)) if path.exists() else 0.0
