@@ -11,14 +11,17 @@ it to these kernels in flat float arrays (layouts below); the Python formulas th
 (`measure`, `base_pd`, `jacobian_transpose`, the references' `__call__`) state the same
 equations and are the readable reference the tests compare these kernels with.
 
-Every operation is written in the order and with the rounding of those formulas, so that a
-run is the same to the last bit: left-to-right sums and products as there, ψ reduced by
-IEEE `remainder` (`_remainder`: CPython's `math.remainder`), `hypot` correctly rounded as
-CPython's (`_hypot`), and the 2×2 products A(a) v that the Python code leaves to numpy, whose
-OpenBLAS kernel rounds row i as fma(A_i0, v_0, A_i1 v_1) (`_rot`), written with that fused
-multiply-add (exact everywhere, so the kernels do not depend on a BLAS).  A(a)ᵀ v, which
-numpy computes plainly, is plain here too.  tests/rsmcheck/test_control_kernels.py checks
-each against its Python formula, bit for bit.
+Every operation is written in the order and with the rounding of those formulas, and each
+rounding is pinned, so that the kernels compute the same bits on every CPU: left-to-right
+sums and products as there, ψ reduced by IEEE `remainder` (`_remainder`: CPython's
+`math.remainder`), `hypot` correctly rounded as CPython's (`_hypot`), and the 2×2 products
+A(a) v that the Python code leaves to numpy written as fma(A_i0, v_0, A_i1 v_1) (`_rot`),
+an exact fused multiply-add, as OpenBLAS's x86-64 kernels round them; A(a)ᵀ v plainly.
+numpy itself rounds those products as the CPU's kernel family makes it (OpenBLAS's
+SkylakeX kernels fuse A(a)ᵀ v too), so the Python formulas equal the kernels to round-off,
+not to the bit, on another CPU.  tests/rsmcheck/test_control_kernels.py checks the blocks to
+the bit against references that round alike everywhere (CPython's floats and math, exact
+rationals), and the laws against their Python formulas to round-off.
 
 Layouts (float64 arrays, filled by `controllers.ProgrammeController`):
 
