@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
-from rsmcheck.orchestration import bench, budget, case_edit, compare, executor, fuzz, gate
+from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare, executor, fuzz, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import CAPABILITIES, available, engine_names, plugin, plugins, require
@@ -334,10 +334,11 @@ def _cmd_gate(args: argparse.Namespace) -> int:
             print(dumps_json({"tolerances": rows}))
             return 0
         print(f"{'case':20s} {'engine':9s} {'observable':20s} {'gate tol':>10s} {'masses':>10s} {'decisions':>10s} "
-              f"{'|value|max':>10s}")
+              f"{'code paths':>10s} {'|value|max':>10s}  set by")
         for r in rows:
             print(f"{r['case']:20s} {r['engine']:9s} {r['observable']:20s} {r['tolerance']:10.2e} "
-                  f"{r['perturbation_change']:10.2e} {r['step_change']:10.2e} {r['largest_value']:10.2e}")
+                  f"{r['perturbation_change']:10.2e} {r['step_change']:10.2e} {r['path_change']:10.2e} "
+                  f"{r['largest_value']:10.2e}  {r['set_by']}")
         return 0
     results = gate.gate(cases, _engine_names(args.engine), _goldens(args), None if args.json else _progress)
     if args.json:
@@ -364,13 +365,33 @@ def _cmd_gate(args: argparse.Namespace) -> int:
     return 0 if all(r.unchanged for r in results) else 1
 
 
+def _code_paths(spec: str | None) -> list | None:
+    """--code-paths: None (every path this CPU can run), 'none', or names from
+    rsmcheck.orchestration.code_paths.CODE_PATHS (one this CPU cannot run: exit 2)."""
+    if spec is None:
+        return None
+    if spec.strip() == "none":
+        return []
+    known = {p.name: p for p in code_paths.CODE_PATHS}
+    out = []
+    for name in (n.strip() for n in spec.split(",") if n.strip()):
+        if name not in known:
+            raise InputError("--code-paths", name, f"no such code path (known: {', '.join(known)}, or none)")
+        if not code_paths.runnable(known[name]):
+            raise InputError("--code-paths", name, "this CPU cannot run it (it lacks "
+                             + ", ".join(f for f in known[name].needs if not code_paths.cpu_features().get(f)) + ")")
+        out.append(known[name])
+    return out
+
+
 def _cmd_bless(args: argparse.Namespace) -> int:
     if not args.reason or not args.reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason: what changed and why the new results are right")
     root = _goldens(args)
     output_dir(str(root), "--goldens")
     cases = _gate_cases(args.case)
-    entries = gate.bless(cases, _engine_names(args.engine), args.reason, root, _progress)
+    entries = gate.bless(cases, _engine_names(args.engine), args.reason, root, _progress,
+                         _code_paths(args.code_paths))
     for case, engine, what in entries:
         print(f"{case} / {engine}: " + "; ".join(what))
     print(f"wrote {len(entries)} golden(s) and an entry in {root / gate.CHANGELOG}")
@@ -489,6 +510,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("case", nargs="+", help="case names, or 'all'")
     p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
     p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
+    p.add_argument("--code-paths", metavar="P,Q|none", default=None,
+                   help="the other CPUs' code paths to measure the gate tolerances on (default: every one this "
+                        "CPU can run: x86-64-v4, x86-64-v3, x86-64-v2, blas-1-thread; docs/gate.md)")
     p.add_argument("--goldens", default=None, help=argparse.SUPPRESS)
     p = sub.add_parser("fuzz", help="randomized cross-check: N drawn scenarios, both engines at two resolutions")
     p.add_argument("--n", type=_whole(1), default=10, help="number of scenarios (default 10)")

@@ -22,6 +22,10 @@ as it was when the golden was blessed, at the level of reproducibility (docs/gat
   machine's round-off can flip such a decision, after which the solution differs by
   integration error or by what Newton's tolerance leaves, not by round-off;
   `STEP_FACTOR` times the change of that run is the second lower bound of the tolerance.
+* Each engine is also run on every other CPU's code path this machine can emulate
+  (rsmcheck.orchestration.code_paths: OpenBLAS's kernel family, numpy's SIMD dispatch,
+  libm's FMA variants and numba's target CPU, each set as another processor would set
+  them); `PATH_FACTOR` times the largest change among those runs is the third lower bound.
 * A run moved when any observable differs from the golden by more than its gate tolerance
   at any stored sample, when the events or phases differ, or when its time grid differs.
   A changed run input of the case file or parameter set is reported as such (the run then
@@ -47,6 +51,7 @@ import numpy as np
 
 from rsmcheck.core.cases import list_cases, load_case
 from rsmcheck.core.plugins import plugins, step_perturbed_settings
+from rsmcheck.orchestration import code_paths
 from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES
 from rsmcheck.orchestration.runs import (GOLDEN_DIR, Job, expected_wall, get_runs, golden_path,  # noqa: F401
@@ -70,6 +75,13 @@ TOL_FACTOR = 10.0
 #: release's Exudyn link deflection by 3.8e-11 m, 279 × (docs/gate.md) ...
 STEP_PERTURBATION = 1e-3
 STEP_FACTOR = 3.0
+#: ... and at least PATH_FACTOR × the largest change among the runs on the other CPUs' code
+#: paths this machine emulates (`code_paths.available`): one such run measures one other
+#: machine, where round-off may flip other decisions than it did (as for STEP_FACTOR).
+#: Without this bound release's Exudyn golden, blessed on an AMD EPYC, moved on an Intel
+#: Xeon by 4.55 × its tolerance; OpenBLAS's Haswell kernels on the Xeon reproduce the
+#: EPYC's run to the bit (docs/gate.md)
+PATH_FACTOR = 3.0
 #: ... and at least REL_FLOOR × the observable's largest magnitude (+ ABS_FLOOR)
 REL_FLOOR = 1e-10
 ABS_FLOOR = 1e-14
@@ -87,6 +99,7 @@ WORK_SLACK = 3
 _TOL = "gate_tol."
 _DELTA = "gate_delta."
 _DELTA_STEP = "gate_delta_step."
+_DELTA_PATH = "gate_delta_path."  # + NAME: the largest over the paths; + PATH.NAME: each path's
 
 
 @dataclass
@@ -251,51 +264,88 @@ def differences(run: EngineRun, golden_run: EngineRun, index: np.ndarray) -> dic
     return out
 
 
-def measured_tolerances(nominal: EngineRun, perturbed: EngineRun, stepped: EngineRun | None = None
-                        ) -> tuple[dict[str, float], dict[str, float], dict[str, float]]:
-    """(gate tolerance, change of the mass perturbation, change of the step perturbation) per
-    observable from the nominal run, the mass-perturbed one and the step-perturbed one
-    (`step_perturbed_case`; None: no such run, its changes 0)."""
+@dataclass
+class Measured:
+    """What bless measures per observable: the gate tolerance and the change each kind of
+    perturbed run caused against the nominal run (the masses, the decisions' tolerance,
+    each emulated code path; `path` is the largest over the paths)."""
+
+    tolerance: dict[str, float]
+    mass: dict[str, float]
+    step: dict[str, float]
+    path: dict[str, float]
+    per_path: dict[str, dict[str, float]]
+
+
+def _largest_changes(other: EngineRun | None, nominal: EngineRun, what: str) -> dict[str, float]:
+    """Per observable the largest |other − nominal| over all samples (0 without `other`)."""
+    if other is None:
+        return {name: 0.0 for name in NAMES}
     n = len(nominal.observables["time"])
-    for other in (perturbed, stepped):
-        if other is not None and len(other.observables["time"]) != n:
-            raise RuntimeError("a perturbed run has another time grid than the nominal one: the case is not "
-                               "reproducible at round-off level (an event moved by a sample)")
-    idx = np.arange(n)
-    diffs = differences(perturbed, nominal, idx)
-    diffs_step = differences(stepped, nominal, idx) if stepped is not None else None
+    if len(other.observables["time"]) != n:
+        raise RuntimeError(f"the {what} run has another time grid than the nominal one: the case is not "
+                           "reproducible at round-off level (an event moved by a sample)")
+    out = {}
+    for name, (d, _) in differences(other, nominal, np.arange(n)).items():
+        out[name] = float(np.max(d)) if d.size else 0.0
+        if not np.isfinite(out[name]):
+            raise RuntimeError(f"{name}: the {what} run is NaN where the nominal one is not")
+    return out
+
+
+def measured_tolerances(nominal: EngineRun, perturbed: EngineRun, stepped: EngineRun | None = None,
+                        paths: dict[str, EngineRun] | None = None) -> Measured:
+    """The gate tolerance of every observable from the nominal run, the mass-perturbed one,
+    the step-perturbed one (`step_perturbed_case`; None: no such run, its changes 0) and the
+    runs on other CPUs' code paths (`code_paths`; name → run):
+
+        tolerance = max(TOL_FACTOR × mass change, STEP_FACTOR × step change,
+                        PATH_FACTOR × largest code-path change, REL_FLOOR × |value|max + ABS_FLOOR)."""
+    mass = _largest_changes(perturbed, nominal, "mass-perturbed")
+    step = _largest_changes(stepped, nominal, "step-perturbed")
+    per_path = {p: _largest_changes(r, nominal, f"code path {p}") for p, r in (paths or {}).items()}
+    path = {name: max((d[name] for d in per_path.values()), default=0.0) for name in NAMES}
     size = scales(nominal)
-    tol, delta, delta_step = {}, {}, {}
-    for name in NAMES:
-        d = diffs[name][0]
-        delta[name] = float(np.max(d)) if d.size else 0.0
-        ds = diffs_step[name][0] if diffs_step is not None else np.zeros(0)
-        delta_step[name] = float(np.max(ds)) if ds.size else 0.0
-        if not (np.isfinite(delta[name]) and np.isfinite(delta_step[name])):
-            raise RuntimeError(f"{name}: a perturbed run is NaN where the nominal one is not")
-        tol[name] = max(TOL_FACTOR * delta[name], STEP_FACTOR * delta_step[name], REL_FLOOR * size[name] + ABS_FLOOR)
-    return tol, delta, delta_step
+    tol = {name: max(TOL_FACTOR * mass[name], STEP_FACTOR * step[name], PATH_FACTOR * path[name],
+                     REL_FLOOR * size[name] + ABS_FLOOR) for name in NAMES}
+    return Measured(tol, mass, step, path, per_path)
 
 
-def write_golden(path: Path, case, run: EngineRun, tolerances: dict[str, float], deltas: dict[str, float],
-                 reason: str, deltas_step: dict[str, float] | None = None) -> Path:
-    """Write the decimated `run` of the short variant of `case` with its provenance."""
+def write_golden(path: Path, case, run: EngineRun, measured: Measured, reason: str) -> Path:
+    """Write the decimated `run` of the short variant of `case` with its provenance and
+    what bless measured (`measured_tolerances`)."""
     n_full = len(run.observables["time"])
     idx = kept_samples(n_full)
     small = at_samples(run, idx)
     extra: dict[str, Any] = {
         "golden_schema": GOLDEN_SCHEMA, "short": True, "n_full": n_full, "max_samples": MAX_SAMPLES,
         "reason": reason, "blessed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "platform": platform.platform(), "machine": platform.machine(),
+        "platform": platform.platform(), "machine": platform.machine(), "cpu": cpu_name(),
         "perturbation": PERTURBATION, "tol_factor": TOL_FACTOR, "rel_floor": REL_FLOOR,
-        "step_perturbation": STEP_PERTURBATION if deltas_step is not None else 0.0, "step_factor": STEP_FACTOR,
+        "step_perturbation": STEP_PERTURBATION if any(measured.step.values()) else 0.0, "step_factor": STEP_FACTOR,
+        "path_factor": PATH_FACTOR, "code_paths": ",".join(measured.per_path),
         "run_inputs_hash": run_inputs_hash(case),
     }
-    extra.update({_TOL + k: float(v) for k, v in tolerances.items()})
-    extra.update({_DELTA + k: float(v) for k, v in deltas.items()})
-    extra.update({_DELTA_STEP + k: float(v) for k, v in (deltas_step or {}).items()})
+    extra.update({_TOL + k: float(v) for k, v in measured.tolerance.items()})
+    extra.update({_DELTA + k: float(v) for k, v in measured.mass.items()})
+    extra.update({_DELTA_STEP + k: float(v) for k, v in measured.step.items()})
+    if measured.per_path:
+        extra.update({_DELTA_PATH + k: float(v) for k, v in measured.path.items()})
+        for p, deltas in measured.per_path.items():
+            extra.update({f"{_DELTA_PATH}{p}.{k}": float(v) for k, v in deltas.items()})
     return write_run(path, {run.engine: small}, case_name=case.name, case_hash=case.file_hash,
                      param_hash=case.params.digest(), extra_attrs=extra, compress=True)
+
+
+def cpu_name() -> str:
+    """This processor's model name (/proc/cpuinfo), else the platform's word for it."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
 
 
 def read_golden(path: Path, engine: str) -> Golden:
@@ -460,18 +510,24 @@ def gate(cases: list, engines: list[str], root: Path | None = None, progress=Non
     return [compare_with_golden(v, got.runs[v.name][e], goldens[(v.name, e)]) for v in variants for e in engines]
 
 
-def bless(cases: list, engines: list[str], reason: str, root: Path | None = None, progress=None) -> list[tuple[str, str, list[str]]]:
-    """Re-run and rewrite the goldens of `cases` (the nominal, the mass-perturbed and the
-    step-perturbed run of each engine; the gate tolerances measured from them) and prepend
-    what moved to the changelog (in `root`, else in `goldens_dir()`)."""
+def bless(cases: list, engines: list[str], reason: str, root: Path | None = None, progress=None,
+          paths: list | None = None) -> list[tuple[str, str, list[str]]]:
+    """Re-run and rewrite the goldens of `cases` and prepend what moved to the changelog (in
+    `root`, else in `goldens_dir()`).  Each engine runs each case's short variant nominally,
+    with the masses perturbed, with its decisions' tolerance perturbed, and on every code
+    path of `paths` (default: every other CPU's this one can emulate,
+    `code_paths.available()`); the gate tolerances are measured from them."""
     root = goldens_dir() if root is None else Path(root)
     if not reason or not reason.strip():
         raise InputError("bless", "--reason", "a bless needs a reason (what changed and why the new results are right)")
+    paths = code_paths.available() if paths is None else list(paths)
     variants = [c.variant(True) for c in cases]
     kinds = {"nominal": lambda v: v, "perturbed": perturbed_case, "step-perturbed": step_perturbed_case}
     jobs = [Job(f"{v.name} / {e}" + (f" ({k})" if k != "nominal" else ""), run_engine,
                 (e, make(v)), expected_wall(v, e), (v.name, e, k))
             for v in variants for e in engines for k, make in kinds.items()]
+    jobs += [Job(f"{v.name} / {e} (code path {p.name})", code_paths.run_on_path, (p, e, v), expected_wall(v, e),
+                 (v.name, e, p.name)) for v in variants for e in engines for p in paths]
     done = run_jobs(jobs, progress)  # the one pool; a failed job raises once all have ended
     for job in jobs:
         if done[job].error is not None:
@@ -486,10 +542,10 @@ def bless(cases: list, engines: list[str], reason: str, root: Path | None = None
             except InputError:
                 old = None
             nominal = runs[(v.name, e, "nominal")]
-            tol, delta, delta_step = measured_tolerances(nominal, runs[(v.name, e, "perturbed")],
-                                                         runs[(v.name, e, "step-perturbed")])
+            measured = measured_tolerances(nominal, runs[(v.name, e, "perturbed")], runs[(v.name, e, "step-perturbed")],
+                                           {p.name: runs[(v.name, e, p.name)] for p in paths})
             what = summarize_change(old, nominal, v) if old is not None else ["new golden"]
-            write_golden(path, v, nominal, tol, delta, reason.strip(), delta_step)
+            write_golden(path, v, nominal, measured, reason.strip())
             entries.append((v.name, e, what))
     append_changelog(root, reason.strip(), entries)
     return entries
@@ -497,16 +553,33 @@ def bless(cases: list, engines: list[str], reason: str, root: Path | None = None
 
 def tolerance_table(cases: list, engines: list[str], root: Path | None = None) -> list[dict[str, Any]]:
     """Per (case, engine, observable): the gate tolerance, the changes the mass and the step
-    perturbation caused (the latter NaN for a golden blessed without that run) and the
-    observable's largest magnitude, as stored in the goldens."""
+    perturbation and the code paths caused (the largest and each path's; NaN for a golden
+    blessed without that run), which of them sets the tolerance, and the observable's
+    largest magnitude, as stored in the goldens."""
     rows = []
+    nan = float("nan")
     for c in cases:
         for e in engines:
             g = read_golden(golden_path(c.name, e, root), e)
             size = scales(g.run)
+            names = [p for p in str(g.attrs.get("code_paths", "")).split(",") if p]
             for name in NAMES:
-                rows.append({"case": c.name, "engine": e, "observable": name, "tolerance": g.tolerances[name],
-                             "perturbation_change": float(g.attrs.get(_DELTA + name, float("nan"))),
-                             "step_change": float(g.attrs.get(_DELTA_STEP + name, float("nan"))),
-                             "largest_value": size[name]})
+                row = {"case": c.name, "engine": e, "observable": name, "tolerance": g.tolerances[name],
+                       "perturbation_change": float(g.attrs.get(_DELTA + name, nan)),
+                       "step_change": float(g.attrs.get(_DELTA_STEP + name, nan)),
+                       "path_change": float(g.attrs.get(_DELTA_PATH + name, nan)),
+                       "paths": {p: float(g.attrs.get(f"{_DELTA_PATH}{p}.{name}", nan)) for p in names},
+                       "largest_value": size[name]}
+                row["set_by"] = _setter(row)
+                rows.append(row)
     return rows
+
+
+def _setter(row: dict[str, Any]) -> str:
+    """Which bound sets a tolerance-table row's tolerance ('masses', 'decisions', 'code
+    paths', 'floor')."""
+    bounds = {"masses": TOL_FACTOR * row["perturbation_change"], "decisions": STEP_FACTOR * row["step_change"],
+              "code paths": PATH_FACTOR * row["path_change"]}
+    bounds = {k: v for k, v in bounds.items() if np.isfinite(v)}
+    kind = max(bounds, key=bounds.get, default="floor")
+    return kind if kind != "floor" and bounds[kind] >= row["tolerance"] * (1 - 1e-12) else "floor"

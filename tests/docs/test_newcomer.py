@@ -59,7 +59,10 @@ def test_a_new_case_can_be_checked_blessed_and_reported(tmp_path):
 
     # 4. rsmcheck bless NAME --reason ...: a golden per engine and the changelog entry
     reason = "new case: free drift with a faster initial spin"
-    bless = _rsmcheck(env, "bless", NAME, "--reason", reason)
+    # (on the one code path whose numba cache the suite has already filled: the other CPUs'
+    # paths each compile every kernel anew, a minute apiece; tests/rsmcheck/orchestration/
+    # test_code_paths.py runs them)
+    bless = _rsmcheck(env, "bless", NAME, "--reason", reason, "--code-paths", "blas-1-thread")
     assert bless.returncode == 0, bless.stdout + bless.stderr
     written = sorted(p.name for p in goldens.glob(f"{NAME}.*.h5"))
     assert written == [f"{NAME}.exudyn.h5", f"{NAME}.reference.h5"], written

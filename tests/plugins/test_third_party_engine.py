@@ -157,6 +157,7 @@ def test_bless_then_gate_the_plugin(plugin_site, tmp_path):
     goldens = tmp_path / "goldens"
     reason = "third-party plug-in test: first golden of twomode"
     bless = rsmcheck("bless", CASE, "--engine", "twomode", "--reason", reason, "--goldens", str(goldens),
+                     "--code-paths", "blas-1-thread",
                      site=plugin_site, cwd=tmp_path)
     assert bless.returncode == 0, bless.stderr
     assert f"{CASE} / twomode: new golden" in bless.stdout

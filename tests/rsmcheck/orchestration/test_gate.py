@@ -6,6 +6,7 @@ stopped with exit 2."""
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import h5py
@@ -83,7 +84,9 @@ def test_perturbation_scales_every_mass_and_nothing_else(tiny):
 
 def test_gate_tolerances_are_measured_from_the_perturbed_run(tiny_runs):
     nominal, perturbed = tiny_runs
-    tol, delta, delta_step = measured_tolerances(nominal, perturbed)
+    m = measured_tolerances(nominal, perturbed)
+    tol, delta, delta_step = m.tolerance, m.mass, m.step
+    assert all(v == 0.0 for v in m.path.values()) and m.per_path == {}  # no code-path runs: no bound from them
     assert all(v == 0.0 for v in delta_step.values())  # no step-perturbed run: no bound from it
     # the perturbation moves the dynamics, but only at its own relative size
     assert 0 < delta["base_pose_I"] < 1e-9
@@ -105,7 +108,8 @@ def test_the_step_perturbation_changes_only_rtol_and_bounds_the_tolerance(tiny, 
     engine = ReferenceEngine(stepped_case)
     stepped = run(engine, stepped_case, stepped_case.duration)
     assert engine.steps > 2 * len(stepped.observables["time"])  # error control sets the steps
-    tol, delta, delta_step = measured_tolerances(nominal, perturbed, stepped)
+    m = measured_tolerances(nominal, perturbed, stepped)
+    tol, delta_step = m.tolerance, m.step
     assert delta_step["ee2_pos_B"] > 0.0
     for name, d in delta_step.items():
         assert tol[name] >= STEP_FACTOR * d, name
@@ -135,7 +139,8 @@ def test_the_step_perturbation_moves_exudyn_s_newton_stops_and_bounds_the_tolera
     perturbed = run(ExudynEngine(perturbed_case(case)), perturbed_case(case), 0.5)
     stepped = run(stepped_engine, stepped_case, 0.5)
     assert stepped.solver["newton_iterations"] != nominal.solver["newton_iterations"]
-    tol, delta, delta_step = measured_tolerances(nominal, perturbed, stepped)
+    m = measured_tolerances(nominal, perturbed, stepped)
+    tol, delta_step = m.tolerance, m.step
     assert delta_step["joint_angles"] > 0.0
     for name, d in delta_step.items():
         assert tol[name] >= STEP_FACTOR * d, name
@@ -144,8 +149,7 @@ def test_the_step_perturbation_moves_exudyn_s_newton_stops_and_bounds_the_tolera
 def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
     case, _ = tiny
     nominal, perturbed = tiny_runs
-    tol, delta, _ = measured_tolerances(nominal, perturbed)
-    path = write_golden(golden_path(case.name, "reference", tmp_path), case, nominal, tol, delta, "test")
+    path = write_golden(golden_path(case.name, "reference", tmp_path), case, nominal, measured_tolerances(nominal, perturbed), "test")
     g = read_golden(path, "reference")
     for key in ("case_hash", "param_hash", "git_commit", "reason", "blessed_utc", "platform", "version.numpy"):
         assert g.attrs[key], key
@@ -212,8 +216,7 @@ def test_work_limit_counts_and_small_counts():
 def test_the_gate_sees_more_work_and_records_less(tiny, tiny_runs, tmp_path):
     case, _ = tiny
     nominal, perturbed = tiny_runs
-    tol, delta, _ = measured_tolerances(nominal, perturbed)
-    g = read_golden(write_golden(tmp_path / "g.h5", case, nominal, tol, delta, "test"), "reference")
+    g = read_golden(write_golden(tmp_path / "g.h5", case, nominal, measured_tolerances(nominal, perturbed), "test"), "reference")
     res = compare_with_golden(case, nominal, g)
     assert [w.counter for w in res.work] == ["attempted steps", "Jacobians"]
     assert all(w.relative == 0.0 for w in res.work) and res.unchanged
@@ -248,8 +251,7 @@ def test_bad_goldens_are_input_errors(tiny, tiny_runs, tmp_path):
     with pytest.raises(InputError, match="not an HDF5 file"):
         read_golden(tmp_path / "junk.h5", "reference")
     nominal, perturbed = tiny_runs
-    tol, delta, _ = measured_tolerances(nominal, perturbed)
-    path = write_golden(tmp_path / "g.h5", case, nominal, tol, delta, "test")
+    path = write_golden(tmp_path / "g.h5", case, nominal, measured_tolerances(nominal, perturbed), "test")
     with h5py.File(path, "a") as f:
         f.attrs["golden_schema"] = 99
     with pytest.raises(InputError, match="golden_schema"):
@@ -260,16 +262,26 @@ def test_cli_bless_gate_unchanged_moved_and_bad_input(tiny, tmp_path, capsys):
     case, _ = tiny
     goldens = tmp_path / "goldens"
     args = [str(case.path), "--engine", "reference", "--goldens", str(goldens)]
+    one_path = ["--code-paths", "blas-1-thread"]  # the others compile every kernel anew (test_code_paths.py)
     assert main(["bless", *args]) == 2  # no reason, no bless
     assert "--reason" in capsys.readouterr().err
     assert not goldens.exists()
     assert main(["gate", *args]) == 2  # no golden yet
     assert "bless it first" in capsys.readouterr().err
-    assert main(["bless", *args, "--reason", "first goldens of the tiny case"]) == 0
+    assert main(["bless", *args, "--code-paths", "x86-64-v9", "--reason", "r"]) == 2  # no such path
+    assert "x86-64-v9" in capsys.readouterr().err and not goldens.exists()
+    assert main(["bless", *args, *one_path, "--reason", "first goldens of the tiny case"]) == 0
     log = (goldens / "CHANGELOG.md").read_text()
     assert "first goldens of the tiny case" in log and "tiny / reference**: new golden" in log
     assert main(["gate", *args]) == 0
     assert "unchanged" in capsys.readouterr().out
+    g = read_golden(golden_path("tiny", "reference", goldens), "reference")
+    assert g.attrs["code_paths"] == "blas-1-thread" and g.attrs["path_factor"] == 3.0
+    assert main(["gate", *args, "--tolerances", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["tolerances"]
+    assert all(set(r["paths"]) == {"blas-1-thread"} and r["path_change"] == r["paths"]["blas-1-thread"] for r in rows)
+    assert all(r["set_by"] in ("masses", "decisions", "code paths", "floor") for r in rows)
+    assert {r["set_by"] for r in rows} >= {"masses", "floor"}
 
     # one stored value off by 1 µm: the gate says what moved and exits 1
     path = golden_path("tiny", "reference", goldens)
@@ -290,7 +302,7 @@ def test_cli_bless_gate_unchanged_moved_and_bad_input(tiny, tmp_path, capsys):
         f["reference/ee1_pos_B"][20, 0] += 1e-6
 
     # re-blessing records what moved in the changelog, newest entry first
-    assert main(["bless", *args, "--reason", "restore the tiny golden"]) == 0
+    assert main(["bless", *args, *one_path, "--reason", "restore the tiny golden"]) == 0
     log = (goldens / "CHANGELOG.md").read_text()
     assert log.index("restore the tiny golden") < log.index("first goldens of the tiny case")
     assert "ee1_pos_B: changed by 1.000e-06" in log
