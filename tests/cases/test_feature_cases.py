@@ -56,12 +56,6 @@ def test_new_feature_cases_name_observables_to_compare(name):
         assert c.tolerance > 0 and c.why.strip().endswith(".")
 
 
-def test_free_drift_conserves_momentum(short_run):
-    _, r = short_run("free_drift")
-    p = r.observables["momentum_I"]
-    assert np.max(np.abs(p - p[0])) < 1e-6 * max(1.0, np.max(np.abs(p)))
-
-
 def test_flex_arm_step_bends_the_links_and_conserves_momentum(short_run):
     _, r = short_run("flex_arm_step")
     o = r.observables
