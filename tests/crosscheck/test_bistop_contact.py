@@ -120,10 +120,11 @@ def test_exudyn_bistop_connector_pushes_the_target_back():
 RUN_OPTIONS = {"reference": {"rtol": 1e-6}, "exudyn": {"substeps": 1}}
 
 
-def torque_history(engine_name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """(t, ψ, τ_w) of arm 1 after every control period of the short wrist_bistop, and ψ_lim:
+def torque_history(engine_name: str, case_name: str = "wrist_bistop"
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(t, ψ, τ_w) of arm 1 after every control period of a case's short run, and ψ_lim:
     ψ the engine's wrist-angle sensor, τ_w the torque it applies to the target there."""
-    case = load_case("wrist_bistop").variant(True)
+    case = load_case(case_name).variant(True)
     case = dataclasses.replace(case, solver=dataclasses.replace(case.solver, output_period=case.duration))
     engine = make_engine(engine_name, case, **RUN_OPTIONS[engine_name])
     sensors = engine.sensors
@@ -182,3 +183,32 @@ def test_bistop_torque_has_no_step(history):
     assert jump[i] <= 0.05 * peak, (f"{name}: τ_w changes by {jump[i]:.3f} N·m in one control period at "
                                     f"t = {t[i + 1]:.3f} s, {jump[i] / peak:.1%} of the peak {peak:.2f} N·m "
                                     f"(first contact at {t[first]:.3f} s: {tau[first]:.3f} N·m)")
+
+
+# ---- the clamp, on both sides, with the shapes slaved: wrist_kick ----------------------
+@pytest.fixture(scope="module", params=["reference", "exudyn"])
+def kick(request):
+    return request.param, torque_history(request.param, "wrist_kick")
+
+
+@pytest.mark.crosscheck
+def test_the_clamp_acts_on_both_stops_and_never_pulls(kick):
+    """wrist_kick (short, 5 s; the reference's static shapes slaved, so that its stop acts
+    through the terminal link's deflection state, docs/physics.md §2.4): the target leans on
+    the + stop, is kicked off it and strikes the − stop.  On each side the wrist leaves
+    faster than k/λ while still inside, where the unclamped law kδ + λδδ̇ would pull: there
+    the torque is held at exactly zero (the clamp, max(0, ·): inside the stop the unclamped
+    law is zero only where kδ + λδδ̇ = 0 to the bit); everywhere in contact it pushes."""
+    name, (t, psi, tau, lim) = kick
+    side = np.sign(psi)
+    delta = np.abs(psi) - lim
+    push = -tau * side
+    for s in (1.0, -1.0):
+        engaged = (side == s) & (delta > 0.0)
+        assert engaged.sum() > 50, f"{name}: no contact with the {s:+.0f} stop"
+        assert push[engaged].min() >= 0.0, f"{name} pulls the target into its {s:+.0f} stop"
+        clamped = engaged & (delta > 1e-4) & (tau == 0.0)
+        assert clamped.sum() >= 5, f"{name}: the clamp never acts at the {s:+.0f} stop"
+        # and there the wrist is leaving: δ falls over the periods around those samples
+        i = np.flatnonzero(clamped)
+        assert np.all(delta[i + 1] < delta[i - 1]), f"{name}: zero torque in the {s:+.0f} stop while not leaving"
