@@ -268,19 +268,19 @@ def differences(run: EngineRun, golden_run: EngineRun, index: np.ndarray) -> dic
 class Measured:
     """What bless measures per observable: the gate tolerance and the change each kind of
     perturbed run caused against the nominal run (the masses, the decisions' tolerance,
-    each emulated code path; `path` is the largest over the paths)."""
+    each emulated code path; `path` is the largest over the paths).  Without a
+    step-perturbed run `step` is None; without code-path runs `per_path` is empty and
+    `path` zero."""
 
     tolerance: dict[str, float]
     mass: dict[str, float]
-    step: dict[str, float]
+    step: dict[str, float] | None
     path: dict[str, float]
     per_path: dict[str, dict[str, float]]
 
 
-def _largest_changes(other: EngineRun | None, nominal: EngineRun, what: str) -> dict[str, float]:
-    """Per observable the largest |other − nominal| over all samples (0 without `other`)."""
-    if other is None:
-        return {name: 0.0 for name in NAMES}
+def _largest_changes(other: EngineRun, nominal: EngineRun, what: str) -> dict[str, float]:
+    """Per observable the largest |other − nominal| over all samples."""
     n = len(nominal.observables["time"])
     if len(other.observables["time"]) != n:
         raise RuntimeError(f"the {what} run has another time grid than the nominal one: the case is not "
@@ -302,11 +302,11 @@ def measured_tolerances(nominal: EngineRun, perturbed: EngineRun, stepped: Engin
         tolerance = max(TOL_FACTOR × mass change, STEP_FACTOR × step change,
                         PATH_FACTOR × largest code-path change, REL_FLOOR × |value|max + ABS_FLOOR)."""
     mass = _largest_changes(perturbed, nominal, "mass-perturbed")
-    step = _largest_changes(stepped, nominal, "step-perturbed")
+    step = _largest_changes(stepped, nominal, "step-perturbed") if stepped is not None else None
     per_path = {p: _largest_changes(r, nominal, f"code path {p}") for p, r in (paths or {}).items()}
     path = {name: max((d[name] for d in per_path.values()), default=0.0) for name in NAMES}
     size = scales(nominal)
-    tol = {name: max(TOL_FACTOR * mass[name], STEP_FACTOR * step[name], PATH_FACTOR * path[name],
+    tol = {name: max(TOL_FACTOR * mass[name], STEP_FACTOR * (step[name] if step else 0.0), PATH_FACTOR * path[name],
                      REL_FLOOR * size[name] + ABS_FLOOR) for name in NAMES}
     return Measured(tol, mass, step, path, per_path)
 
@@ -322,13 +322,13 @@ def write_golden(path: Path, case, run: EngineRun, measured: Measured, reason: s
         "reason": reason, "blessed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "platform": platform.platform(), "machine": platform.machine(), "cpu": cpu_name(),
         "perturbation": PERTURBATION, "tol_factor": TOL_FACTOR, "rel_floor": REL_FLOOR,
-        "step_perturbation": STEP_PERTURBATION if any(measured.step.values()) else 0.0, "step_factor": STEP_FACTOR,
+        "step_perturbation": STEP_PERTURBATION if measured.step is not None else 0.0, "step_factor": STEP_FACTOR,
         "path_factor": PATH_FACTOR, "code_paths": ",".join(measured.per_path),
         "run_inputs_hash": run_inputs_hash(case),
     }
     extra.update({_TOL + k: float(v) for k, v in measured.tolerance.items()})
     extra.update({_DELTA + k: float(v) for k, v in measured.mass.items()})
-    extra.update({_DELTA_STEP + k: float(v) for k, v in measured.step.items()})
+    extra.update({_DELTA_STEP + k: float(v) for k, v in (measured.step or {}).items()})
     if measured.per_path:
         extra.update({_DELTA_PATH + k: float(v) for k, v in measured.path.items()})
         for p, deltas in measured.per_path.items():

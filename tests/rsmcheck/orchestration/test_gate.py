@@ -85,9 +85,9 @@ def test_perturbation_scales_every_mass_and_nothing_else(tiny):
 def test_gate_tolerances_are_measured_from_the_perturbed_run(tiny_runs):
     nominal, perturbed = tiny_runs
     m = measured_tolerances(nominal, perturbed)
-    tol, delta, delta_step = m.tolerance, m.mass, m.step
+    tol, delta = m.tolerance, m.mass
     assert all(v == 0.0 for v in m.path.values()) and m.per_path == {}  # no code-path runs: no bound from them
-    assert all(v == 0.0 for v in delta_step.values())  # no step-perturbed run: no bound from it
+    assert m.step is None  # no step-perturbed run: no bound from it
     # the perturbation moves the dynamics, but only at its own relative size
     assert 0 < delta["base_pose_I"] < 1e-9
     assert tol["base_pose_I"] >= 10 * delta["base_pose_I"]
@@ -144,6 +144,28 @@ def test_the_step_perturbation_moves_exudyn_s_newton_stops_and_bounds_the_tolera
     assert delta_step["joint_angles"] > 0.0
     for name, d in delta_step.items():
         assert tol[name] >= STEP_FACTOR * d, name
+
+
+def test_a_code_path_s_change_bounds_the_tolerance_and_is_stored(tiny, tiny_runs, tmp_path):
+    """PATH_FACTOR × the largest change among the code-path runs is a lower bound of every
+    gate tolerance; the golden keeps each path's change, and the tolerance table says which
+    bound sets each tolerance."""
+    from rsmcheck.orchestration.gate import PATH_FACTOR, tolerance_table
+
+    case, _ = tiny
+    nominal, perturbed = tiny_runs
+    obs = {k: v.copy() for k, v in nominal.observables.items()}
+    obs["ee1_pos_B"][40:, 0] += 1e-7  # another CPU's run, here one that moved an end effector
+    other = dataclasses.replace(nominal, observables=obs)
+    m = measured_tolerances(nominal, perturbed, None, {"x86-64-v3": other, "blas-1-thread": nominal})
+    assert m.per_path["x86-64-v3"]["ee1_pos_B"] == pytest.approx(1e-7, rel=1e-6)
+    assert m.per_path["blas-1-thread"]["ee1_pos_B"] == 0.0 and m.path["ee1_pos_B"] == m.per_path["x86-64-v3"]["ee1_pos_B"]
+    assert m.tolerance["ee1_pos_B"] == PATH_FACTOR * m.path["ee1_pos_B"]
+    write_golden(golden_path(case.name, "reference", tmp_path), case, nominal, m, "test")
+    rows = {r["observable"]: r for r in tolerance_table([case], ["reference"], tmp_path)}
+    assert rows["ee1_pos_B"]["set_by"] == "code paths" and rows["time"]["set_by"] == "floor"
+    assert rows["ee1_pos_B"]["paths"] == {"x86-64-v3": m.per_path["x86-64-v3"]["ee1_pos_B"], "blas-1-thread": 0.0}
+    assert np.isnan(rows["ee1_pos_B"]["step_change"])  # blessed without a step-perturbed run
 
 
 def test_golden_round_trip_and_verdicts(tiny, tiny_runs, tmp_path):
