@@ -32,7 +32,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from numpy._core._multiarray_umath import __cpu_features__
+
 from rsmcheck.core.store import EngineRun
+from rsmcheck.orchestration.runs import run_engine
 
 
 @dataclass(frozen=True)
@@ -71,8 +74,6 @@ CODE_PATHS: tuple[CodePath, ...] = (
 
 def cpu_features() -> dict[str, bool]:
     """This CPU's features by numpy's names (AVX512F, FMA3, …)."""
-    from numpy._core._multiarray_umath import __cpu_features__
-
     return dict(__cpu_features__)
 
 
@@ -104,8 +105,6 @@ def run_on_path(path: CodePath, engine: str, case: Any) -> EngineRun:
 
 
 def _child(job: str, out: str) -> None:
-    from rsmcheck.orchestration.runs import run_engine
-
     engine, case = pickle.loads(Path(job).read_bytes())
     Path(out).write_bytes(pickle.dumps(run_engine(engine, case)))
 
