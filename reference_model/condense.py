@@ -265,15 +265,24 @@ def _stop_rate(psi_free, psid_free, e, h, ce, x_kv, lim, k, lam):
 
 
 @njit(cache=True, inline="always")
-def _settled(psi_free, psid_free, h, lim, k, lam):
-    """e where the stop's law holds with ė = 0 (a start in contact),
-    e/h = (δ_0 − e)(k + λ s ψ̇_free), clamped to push only; and τ_w."""
+def _settled(psi_free, psid_free, h, x_kv, lim, k, lam):
+    """e where the stop's law holds with ė = 0 (a start in contact; `_stop_rate` then gives
+    ė = 0): push = e/h − s x_kv = (δ_0 − e)(k + λ s ψ̇_free), so
+
+        e = h (δ_0 stiff + s x_kv) / (1 + h stiff),   stiff = max(k + λ s ψ̇_free, 0),
+
+    clamped to push only (push = 0: e = s x_kv h) and to 0 ≤ e ≤ δ_0; and τ_w = −s push."""
     s, d0 = _overlap(psi_free, lim)
     if s == 0.0:
         return 0.0, 0.0
     stiff = max(k + lam * s * psid_free, 0.0)
-    e = d0 * stiff * h / (1.0 + stiff * h)
-    return e, (-s * stiff * d0 if h == 0.0 else -s * e / h)
+    if h == 0.0:
+        return 0.0, -s * stiff * d0
+    e = h * (d0 * stiff + s * x_kv) / (1.0 + h * stiff)
+    if e / h - s * x_kv < 0.0:  # the stop would pull: it lets go
+        e = s * x_kv * h
+    e = min(max(e, 0.0), d0)
+    return e, -s * max(e / h - s * x_kv, 0.0)
 
 
 @njit(cache=True, inline="always")
@@ -347,14 +356,14 @@ def condense(x, m, sw, settle):
                 psid += m.sl_dw[k, term, r] * ad[r]
             h = m.sl_h[k, term]
             ce = m.sl_ce[k, term]
+            x_kv = 0.0  # (η K_ss g)·T ż / h
+            if h > 0.0:
+                for r in range(N_ARM):
+                    x_kv += m.sl_kg[k, term, r] * ad[r]
+                x_kv /= h
             if settle:
-                e, tauw[k] = _settled(psi, psid, h, sc[S_WLIM], sc[S_WK], sc[S_WLAM])
+                e, tauw[k] = _settled(psi, psid, h, x_kv, sc[S_WLIM], sc[S_WK], sc[S_WLAM])
             else:
-                x_kv = 0.0  # (η K_ss g)·T ż / h
-                if h > 0.0:
-                    for r in range(N_ARM):
-                        x_kv += m.sl_kg[k, term, r] * ad[r]
-                    x_kv /= h
                 e, edot[k], tauw[k] = _stop_rate(psi, psid, x[ie + k], h, ce, x_kv, sc[S_WLIM], sc[S_WK],
                                                  sc[S_WLAM])
             # a_s += g (−s e/h); the Kelvin–Voigt force of the rate g (−s ė/h), +s ė/h η K_ss g,

@@ -191,6 +191,23 @@ def test_stop_torque_is_the_stop_law_at_the_slaved_wrist(fraction, toward):
         assert tau < 0.0  # pressing on the upper stop: pushed back
 
 
+def test_a_start_on_the_stop_settles_where_the_deflection_rests():
+    """A start in contact (`complete(…, settle=True)`) puts e where the stop's law holds with
+    ė = 0, the slaved shapes' Kelvin–Voigt force x_kv included: the state then starts with
+    ė = 0 also when the links move (x_kv ≠ 0), not only at rest.  Without x_kv the settled e
+    is off by s x_kv h / (1 + h stiff), and ė starts at x_kv / (λδ + c_e)."""
+    model = ReferenceModel(PARAMS, 2, static_modes="condensed")
+    lay = model.layout
+    x, cfg, rng = loaded_state(model, 0.02)
+    x[lay.ns:2 * lay.ns] = 1e-3 * rng.normal(size=lay.ns)  # every rate (ψ̇ stays under k/λ)
+    x[lay.ns + lay.nq + 2] = 0.0
+    settled = model.complete(x, cfg, settle=True)
+    e = settled[lay.stop_deflection][0]
+    edot = model.rhs(settled, np.zeros(N_INPUTS), cfg)[lay.stop_deflection][0]
+    assert e > 0.0
+    assert abs(edot) <= 1e-9 * e, (edot, e)
+
+
 def test_linear_plant_refuses_a_start_on_a_stop(monkeypatch):
     """`modes.linear_plant` holds the stop deflections e: off the stops (e = 0, every case's
     start) that is exact, on a stop it would leave out the stop's relaxation, so such a
