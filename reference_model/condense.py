@@ -57,7 +57,8 @@ spring e/h and their Kelvin–Voigt damping, c_e ė on the rate g (−s ė/h) an
     ė = [δ (k + λ s ψ̇_free) − e/h + s x_kv] / (λ δ + c_e)      (`_stop_rate`).
 
 Where it would pull the stop lets go (push = 0, the link relaxes), e stays ≥ 0, and off
-the stop e relaxes to 0; without any damping e = δ_0 k h / (1 + k h), the spring-only
+the stop a deflection left over relaxes to 0 (e/h + c_e ė = 0), still in a_s (the link
+does not jump back); without any damping e = δ_0 k h / (1 + k h), the spring-only
 equilibrium.  The rate g ė is massless: ȧ_s = T ż leaves it out (it carries no momentum)
 and its Kelvin–Voigt force is added to the shapes' (system._assemble).  At a release the
 deflection is dropped with the grasp (its energy e²/2h, ~0.01 J at the peaks of the
@@ -240,13 +241,16 @@ def _stop_rate(psi_free, psid_free, e, h, ce, x_kv, lim, k, lam):
     """The terminal link's deflection under the stop, e, as the state the stop's law leaves
     (module doc): (e_eff, ė, τ_w).  x_kv = (η K_ss g)·T ż / h, the links' Kelvin–Voigt
     force of the slaved rates along g.  Off the stop (|ψ_free| ≤ ψ_lim) no torque and a
-    deflection left over relaxes; without any damping e_eff is the spring-only equilibrium
+    deflection left over relaxes (e/h + c_e ė = 0), still in a_s: the link does not jump
+    back (without damping, c_e = 0, it does: e_eff = 0); without any damping e_eff is the spring-only equilibrium
     and ė = 0; a terminal link without static shapes (h = 0) does not deflect, the law acts
     at ψ_free.  Where the stop would pull it lets go: no torque, the link relaxes under its
     own damping (push = 0); e stays ≥ 0."""
     s, d0 = _overlap(psi_free, lim)
-    if s == 0.0:
-        return 0.0, (-e / (h * ce) if e > 0.0 and ce > 0.0 else 0.0), 0.0
+    if s == 0.0:  # off the stop: a deflection left over relaxes, e/h + c_e ė = 0, and stays in a_s
+        if e > 0.0 and ce > 0.0:
+            return e, -e / (h * ce), 0.0
+        return 0.0, 0.0, 0.0
     if h == 0.0:
         return 0.0, 0.0, -s * max(d0 * (k + lam * s * psid_free), 0.0)
     if lam == 0.0 and ce == 0.0:  # e/h = k (δ_0 − e)

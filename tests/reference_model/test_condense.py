@@ -208,6 +208,32 @@ def test_a_start_on_the_stop_settles_where_the_deflection_rests():
     assert abs(edot) <= 1e-9 * e, (edot, e)
 
 
+def test_a_deflection_left_off_the_stop_relaxes_in_place():
+    """Off the stop (the wrist back inside its range) the terminal link's deflection under the
+    stop, e, relaxes through its own damping, e/h + c_e ė = 0, and stays in the shapes while
+    it does: the completed wrist angle is the free one less s e (continuous with the contact),
+    the stop pushes nothing, and ė = −e/(h c_e)."""
+    model = ReferenceModel(PARAMS, 2, static_modes="condensed")
+    lay = model.layout
+    x, cfg, _ = loaded_state(model, -0.01)  # 0.01 rad inside the upper stop
+    u = np.zeros(N_INPUTS)
+
+    def wrist(state):
+        xc = model.complete(state, cfg)
+        kin = model.kinematics(xc[lay.q], xc[lay.qd], cfg)
+        return wrist_angles(xc[lay.q], xc[lay.qd], xc[lay.target], xc[lay.target_d], kin.th, kin.om,
+                            model.arrays, cfg.basis)[0][0]
+
+    free = wrist(x)
+    e = 1e-3
+    x[lay.stop_deflection] = [e, 0.0]
+    assert wrist(x) == pytest.approx(free - e, abs=1e-12)  # s = +1: the upper stop's side
+    assert model.assemble(x, u, cfg)[8][0] == 0.0
+    edot = model.rhs(x, u, cfg)[lay.stop_deflection][0]
+    h, ce = model.arrays.sl_h[0, PP], model.arrays.sl_ce[0, PP]
+    assert edot == pytest.approx(-e / (h * ce), rel=1e-12) and edot < 0.0
+
+
 def test_linear_plant_refuses_a_start_on_a_stop(monkeypatch):
     """`modes.linear_plant` holds the stop deflections e: off the stops (e = 0, every case's
     start) that is exact, on a stop it would leave out the stop's relaxation, so such a
