@@ -179,23 +179,25 @@ class Budget:
         return round_up(factor * b) if 0 < b < math.inf else None
 
     def suggested_why(self, refinements: Mapping[str, str], factor: float = SUGGEST_FACTOR,
-                      source: str = DEFAULT_OUT) -> str:
-        """'budget X: model difference A, reference integration B (rtol/10), exudyn
-        integration C (half step); tolerance = 3 × budget (docs/data/budget.json)';
-        `refinements`: engine → what its finer run refines."""
+                      source: str = DEFAULT_OUT, run: str = "full run") -> str:
+        """'Budget X m on the full run (docs/data/budget.json): model difference A, reference
+        integration B (rtol/10), exudyn integration C (half step); tolerance 3 × budget.', the
+        form a case file's why quotes (tests/cases/test_budget_quotes.py); `refinements`:
+        engine → what its finer run refines; `run`: 'full run', 'short run', 'short chained
+        flight' (`CaseBudget.run_label`)."""
         parts = [f"model difference {_g(self.model_difference)}"]
         for e, v in self.integration_error.items():
             how = f" ({refinements[e]})" if v is not None and refinements.get(e) else ""
             parts.append(f"{e} integration {_g(v)}{how}")
         bound = "" if self.complete else " (a lower bound)"
+        head = f"Budget {_g(self.budget)}{self.unit}{bound} on the {run} ({source})"
         if self.inherited:
-            return (f"budget {_g(self.budget)}{self.unit}{bound}: {', '.join(parts)}, of which d0 = "
-                    f"{_g(self.inherited)} inherited; tolerance = {factor:g} × (budget − d0), checked "
-                    f"against tolerance + d0 ({source})")
-        return (f"budget {_g(self.budget)}{self.unit}{bound}: {', '.join(parts)}; "
-                f"tolerance = {factor:g} × budget ({source})")
+            return (f"{head}: {', '.join(parts)}, of which d0 = {_g(self.inherited)} inherited; "
+                    f"tolerance {factor:g} × (budget − d0), checked against tolerance + d0.")
+        return f"{head}: {', '.join(parts)}; tolerance {factor:g} × budget."
 
-    def as_dict(self, refinements: Mapping[str, str] | None = None, suggest: Suggest = Suggest()) -> dict[str, Any]:
+    def as_dict(self, refinements: Mapping[str, str] | None = None, suggest: Suggest = Suggest(),
+                run: str = "full run") -> dict[str, Any]:
         tol = self.suggested_tolerance(suggest.factor)
         return {"case": self.case, "observable": self.observable, "metric": self.metric,
                 "engines": list(self.engines), "tolerance": self.tolerance,
@@ -209,7 +211,7 @@ class Budget:
                    if self.integration_inherited else {}),
                 "suggested_tolerance": tol,
                 "suggested_why": None if tol is None else self.suggested_why(refinements or {}, suggest.factor,
-                                                                             suggest.source),
+                                                                             suggest.source, run),
                 "why": self.why}
 
 
@@ -324,6 +326,11 @@ class CaseBudget:
     @property
     def variant(self) -> Case:
         return self.case.variant(self.short)
+
+    @property
+    def run_label(self) -> str:
+        """What a suggested why says it was measured on: 'short run', 'full chained flight'…"""
+        return f"{'short' if self.short else 'full'} {'chained flight' if self.case.phases else 'run'}"
 
     def refinements(self) -> dict[str, str]:
         return {e: str(getattr(plugin(e), "refinement", "") or "") for e in self.engines}
@@ -454,7 +461,7 @@ def case_entry(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, Any]:
             "refinements": {e: r or None for e, r in refinements.items()},
             "not_measured": list(cb.not_measured), "failures": dict(cb.failures),
             "suggested_tolerance": suggest.rule,
-            "runs": cb.runs, "rows": [r.as_dict(refinements, suggest) for r in cb.rows]}
+            "runs": cb.runs, "rows": [r.as_dict(refinements, suggest, cb.run_label) for r in cb.rows]}
 
 
 def document(results: Sequence[CaseBudget], short: bool, previous: Mapping[str, Any] | None = None,
@@ -525,7 +532,7 @@ def suggestion_lines(cb: CaseBudget, suggest: Suggest = Suggest()) -> list[str]:
             continue
         lines.append(f"  {r.case} {r.observable}{pair}: tolerance {r.tolerance - r.inherited:.2g} -> {tol:.2g}"
                      + (f" (checked against it + d0 = {r.inherited:.2g})" if r.inherited else ""))
-        lines.append(f"      why = \"{r.suggested_why(refinements, suggest.factor, suggest.source)}\"")
+        lines.append(f"      why = \"{r.suggested_why(refinements, suggest.factor, suggest.source, cb.run_label)}\"")
     return lines
 
 
@@ -536,7 +543,8 @@ def suggestions(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, tuple
     if cb.failures or len(cb.engines) != 2 or cb.case.phases:
         return {}
     refinements = cb.refinements()
-    return {r.observable: (tol, r.suggested_why(refinements, suggest.factor, suggest.source)) for r in cb.rows
+    return {r.observable: (tol, r.suggested_why(refinements, suggest.factor, suggest.source, cb.run_label))
+            for r in cb.rows
             if r.complete and (tol := r.suggested_tolerance(suggest.factor)) is not None}
 
 

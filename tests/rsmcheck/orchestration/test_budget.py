@@ -101,8 +101,10 @@ def test_the_suggestion_names_every_part_and_the_rule():
     row = bud.Budget("c", "ee1_pos_B", "max_abs", (A, B), 1e-7, 2.77e-8, {A: 3.6e-9, B: 2.74e-8}, unit=" m")
     assert row.suggested_tolerance() == 1.8e-7  # 3 × 5.87e-8 = 1.761e-7, rounded up
     assert row.suggested_why({A: "rtol/10", B: "half step"}) == (
-        "budget 5.9e-08 m: model difference 2.8e-08, reference integration 3.6e-09 (rtol/10), "
-        "exudyn integration 2.7e-08 (half step); tolerance = 3 × budget (docs/data/budget.json)")
+        "Budget 5.9e-08 m on the full run (docs/data/budget.json): model difference 2.8e-08, reference "
+        "integration 3.6e-09 (rtol/10), exudyn integration 2.7e-08 (half step); tolerance 3 × budget.")
+    assert row.suggested_why({A: "rtol/10", B: "half step"}, run="short run").startswith(
+        "Budget 5.9e-08 m on the short run (docs/data/budget.json): ")
 
 
 def test_an_engine_without_a_finer_run_is_not_measured_and_the_budget_says_lower_bound():
@@ -153,7 +155,8 @@ def test_the_command_runs_each_engine_at_the_case_settings_and_refined(fake_engi
     for spec in case.compare:
         assert spec.observable in stdout
     assert "3 rows: 2 ok, 0 tight, 1 blind" in stdout  # ee2_pos_B: 5e-7 over 4.1e-8
-    assert stdout.count(f"tolerance = 3 × budget ({out})") == 3  # the document it wrote
+    assert stdout.count(f"on the short run ({out})") == 3  # the document it wrote
+    assert stdout.count("tolerance 3 × budget.") == 3
 
     doc = json.loads(out.read_text())
     entry = doc["variants"]["short"]["p1_rigid_gains"]
@@ -252,7 +255,7 @@ def test_the_factor_of_the_suggestion_is_an_option(fake_engines, tmp_path, capsy
     entry = json.loads(out.read_text())["variants"]["short"]["p1_rigid_gains"]
     assert entry["suggested_tolerance"] == "2 x budget, rounded up to 2 significant figures"
     row = next(r for r in entry["rows"] if r["observable"] == "ee1_pos_B")
-    assert row["suggested_tolerance"] == 8.2e-8 and row["suggested_why"].endswith(f"tolerance = 2 × budget ({out})")
+    assert row["suggested_tolerance"] == 8.2e-8 and row["suggested_why"].endswith("tolerance 2 × budget.")
 
 
 def test_an_out_file_that_is_not_a_budget_document_is_refused_before_anything_runs(fake_engines, tmp_path, capsys):
