@@ -74,8 +74,18 @@ FAULTS: tuple[Fault, ...] = (
           "fkv[k, r] = 0.0 * m.sl_kg[k, term, r] * s_side * edot[k] / h",
           "slaved shapes: the Kelvin–Voigt force of the stop deflection's rate left off the shapes"),
     Fault("ref_stop_clamp", "reference_model/condense.py",
-          "return e, edot, -s * max(push, 0.0)", "return e, edot, -s * push",
-          "slaved shapes: the stop's clamp dropped (the Hunt–Crossley law pulls the target back as it leaves)"),
+          "    if e / h + ce * edot - s * x_kv < 0.0:  # the stop would pull: it lets go, push = 0\n"
+          "        edot = (s * x_kv - e / h) / ce if ce > 0.0 else 0.0\n"
+          "    if e <= 0.0 and edot < 0.0:\n"
+          "        edot = 0.0\n"
+          "    push = e / h + ce * edot - s * x_kv\n"
+          "    return e, edot, -s * max(push, 0.0)\n",
+          "    if e <= 0.0 and edot < 0.0:\n"
+          "        edot = 0.0\n"
+          "    push = e / h + ce * edot - s * x_kv\n"
+          "    return e, edot, -s * push\n",
+          "slaved shapes: the stop's clamp dropped, in its torque and in the deflection's rate "
+          "(the Hunt–Crossley law pulls the target back as it leaves)"),
     # ---- control: a change that changes no arithmetic (a name starting with noop_) -------
     Fault("noop_commuted_sum", "reference_model/link.py",
           "mtt = sc[S_I0] + sc[S_JEX]", "mtt = sc[S_JEX] + sc[S_I0]",
