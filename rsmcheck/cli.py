@@ -20,7 +20,7 @@ from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare, executor, fuzz, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
-from rsmcheck.core.plugins import CAPABILITIES, available, engine_names, plugin, plugins, require
+from rsmcheck.core.plugins import CAPABILITIES, available, broken_plugins, engine_names, plugin, plugins, require
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
 
@@ -61,6 +61,8 @@ def _cmd_engines(args: argparse.Namespace) -> int:
         print(f"{name:12s} {p.label:12s} {role:9s} tables {tables:12s} {type(p).__module__:26s} {state}")
         if caps:
             print(f"{'':12s} offers {', '.join(caps)}")
+    for name, b in broken_plugins().items():
+        print(f"{name:12s} {'-':12s} {'-':9s} {'':19s} {b.distribution:26s} BROKEN: {b.reason}")
     return 0
 
 
@@ -615,9 +617,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     dirs = lead["cases_dir"]
     try:
         plugin_commands = _plugin_commands() if argv else {}
-    except InputError as exc:  # a plug-in that does not load: one line, exit 2
+    except InputError as exc:  # two distributions register one engine name: one line, exit 2
         sys.stderr.write(f"rsmcheck: {exc}\n")
         return 2
+    if argv and argv[0] != "engines":  # `engines` lists them itself
+        for b in broken_plugins().values():  # left out, so only a command that names one stops
+            sys.stderr.write(f"rsmcheck: ignoring {b}\n")
     if argv and argv[0] in (DELEGATED | set(plugin_commands)):
         more, rest = _take_globals(argv[1:], anywhere=True)
         schedulers = lead["scheduler"] + more["scheduler"]

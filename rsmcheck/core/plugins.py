@@ -166,33 +166,90 @@ def deferred(module: str, function: str) -> Callable[..., Any]:
 # ---------------------------------------------------------------------------------------
 # the registry
 # ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BrokenPlugin:
+    """A registered entry point that gives no usable plug-in: its name, the distribution
+    that brought it ("name version") and why.  The registry leaves it out, so that it stops
+    only the commands that name it (`plugin`); `rsmcheck engines` lists it."""
+
+    name: str
+    distribution: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"engine plug-in {self.name!r} from {self.distribution} does not load: {self.reason}"
+
+
+def _distribution(ep: metadata.EntryPoint) -> str:
+    """'name version' of the distribution that registered `ep`."""
+    dist = getattr(ep, "dist", None)
+    return f"{dist.name} {dist.version}" if dist is not None else "an unknown distribution"
+
+
+def _load(ep: metadata.EntryPoint) -> tuple[EnginePlugin | None, str]:
+    """(the plug-in, "") or (None, why it is not one): any exception of its import, a
+    required attribute missing, a name other than the entry point's."""
+    try:
+        obj = ep.load()
+    except Exception as exc:  # a third party's import may raise anything: reported, not raised
+        return None, f"{ep.value} does not import ({type(exc).__name__}: {exc})"
+    missing = [a for a in REQUIRED if not hasattr(obj, a)]
+    if missing:
+        return None, f"{ep.value} lacks {', '.join(missing)}"
+    if obj.name != ep.name:
+        return None, f"{ep.value} calls itself {obj.name!r}"
+    return obj, ""
+
+
 @lru_cache(maxsize=1)
-def plugins() -> dict[str, EnginePlugin]:
-    """Every registered plug-in by name: the engines that simulate first, the default
-    engines of a cross-check (defaults.toml) in their order, then the others by name (the
-    first distribution on sys.path wins where two register one name)."""
+def _registry() -> tuple[dict[str, EnginePlugin], dict[str, BrokenPlugin]]:
+    """(the plug-ins by name, the broken entry points by name), read once per process.
+    Two distributions that register one name are an `InputError` naming both: which of
+    them a command would get depends on the order they were installed in."""
+    eps = list(metadata.entry_points(group=GROUP))
+    for name in dict.fromkeys(ep.name for ep in eps):
+        same = [ep for ep in eps if ep.name == name]
+        if len(same) > 1:
+            dists = [_distribution(ep) for ep in same]
+            others = [d.split()[0] for d in dists if d.split()[0] != "rsmcheck"] or [dists[-1].split()[0]]
+            raise InputError(f"entry point {GROUP}", name,
+                             f"registered by {' and by '.join(dists)}; keep one: pip uninstall {others[-1]}")
     found: dict[str, EnginePlugin] = {}
-    for ep in metadata.entry_points(group=GROUP):
-        if ep.name in found:
-            continue
-        try:
-            obj = ep.load()
-        except ImportError as exc:
-            raise InputError(f"entry point {GROUP}", ep.name, f"its module does not import ({exc})") from None
-        missing = [a for a in REQUIRED if not hasattr(obj, a)]
-        if missing:
-            raise InputError(f"entry point {GROUP}", ep.name, f"{ep.value} lacks {', '.join(missing)}")
-        if obj.name != ep.name:
-            raise InputError(f"entry point {GROUP}", ep.name, f"{ep.value} calls itself {obj.name!r}")
-        found[ep.name] = obj
+    broken: dict[str, BrokenPlugin] = {}
+    for ep in eps:
+        obj, why = _load(ep)
+        if obj is None:
+            broken[ep.name] = BrokenPlugin(ep.name, _distribution(ep), why)
+        else:
+            found[ep.name] = obj
     first = list(_defaults()["check_engines"])
-    return dict(sorted(found.items(), key=lambda kv: (not kv[1].simulates,
-                                                      first.index(kv[0]) if kv[0] in first else len(first), kv[0])))
+    ordered = dict(sorted(found.items(), key=lambda kv: (not kv[1].simulates,
+                                                         first.index(kv[0]) if kv[0] in first else len(first), kv[0])))
+    return ordered, broken
+
+
+def plugins() -> dict[str, EnginePlugin]:
+    """Every registered plug-in that loads, by name: the engines that simulate first, the
+    default engines of a cross-check (defaults.toml) in their order, then the others by
+    name.  Broken entry points are left out (`broken_plugins`)."""
+    return _registry()[0]
+
+
+def broken_plugins() -> dict[str, BrokenPlugin]:
+    """The registered entry points that do not load, by name (`BrokenPlugin`)."""
+    return _registry()[1]
+
+
+#: the registry is read once per process; tests read it again
+plugins.cache_clear = _registry.cache_clear  # type: ignore[attr-defined]
 
 
 def plugin(name: str, option: str = "--engine") -> EnginePlugin:
-    """The plug-in `name`; an unknown name is an `InputError` listing the known ones."""
+    """The plug-in `name`; an unknown name is an `InputError` listing the known ones, a
+    broken one an `InputError` naming its distribution and why it does not load."""
     known = plugins()
+    if name in broken_plugins():
+        raise InputError(option, name, str(broken_plugins()[name]))
     if name not in known:
         raise InputError(option, name, f"no such engine (registered: {', '.join(known) or 'none'})")
     return known[name]

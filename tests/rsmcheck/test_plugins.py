@@ -57,13 +57,21 @@ def test_engine_names_from_the_command_line():
         reg.engine_names("reference,reference")
 
 
-class _EntryPoint:
-    """An entry point as importlib.metadata gives it: a name, a value, `load()`."""
+class _Distribution:
+    def __init__(self, name, version):
+        self.name, self.version = name, version
 
-    def __init__(self, name, obj):
+
+class _EntryPoint:
+    """An entry point as importlib.metadata gives it: a name, a value, `load()`, `dist`."""
+
+    def __init__(self, name, obj, dist=("fakedist", "0.1")):
         self.name, self.value, self._obj = name, f"fake.module:{name}", obj
+        self.dist = _Distribution(*dist)
 
     def load(self):
+        if isinstance(self._obj, BaseException):
+            raise self._obj
         return self._obj
 
 
@@ -77,19 +85,44 @@ def _complete(name):
     return obj
 
 
-def test_an_incomplete_or_misnamed_plug_in_is_refused_in_one_line(monkeypatch, fresh_registry):
+def _real_plus(monkeypatch, *extra):
+    """The real entry points and `extra` ones after them."""
+    real = list(metadata.entry_points(group=reg.GROUP))
+    monkeypatch.setattr(reg.metadata, "entry_points", lambda group: real + list(extra))
+    reg.plugins.cache_clear()
+
+
+def test_an_incomplete_misnamed_or_failing_plug_in_is_left_out_and_named(monkeypatch, fresh_registry):
+    """Whatever goes wrong with a plug-in (an import that raises anything, an attribute
+    missing, another name), the registry leaves it out with the distribution that brought
+    it and why; the others stay usable, and asking for it is one line naming both."""
     incomplete, misnamed = _complete("half"), _complete("other")
     del type(incomplete).step_perturbed, type(incomplete).faults
-    monkeypatch.setattr(reg.metadata, "entry_points", lambda group: [_EntryPoint("half", incomplete)])
-    reg.plugins.cache_clear()  # _complete read the real registry
+    _real_plus(monkeypatch, _EntryPoint("half", incomplete), _EntryPoint("alias", misnamed),
+               _EntryPoint("boom", RuntimeError("no licence server"), dist=("boomdist", "2.3")))
+    assert list(reg.plugins())[:2] == ["reference", "exudyn"]
+    assert not {"half", "alias", "boom"} & set(reg.plugins())
+    broken = reg.broken_plugins()
+    assert "lacks step_perturbed, faults" in broken["half"].reason
+    assert "calls itself 'other'" in broken["alias"].reason
+    assert broken["boom"].distribution == "boomdist 2.3"
+    assert "RuntimeError: no licence server" in broken["boom"].reason
+    with pytest.raises(InputError) as info:
+        reg.plugin("boom")
+    assert str(info.value) == ("--engine: boom: engine plug-in 'boom' from boomdist 2.3 does not load: "
+                               "fake.module:boom does not import (RuntimeError: no licence server)")
+    with pytest.raises(InputError, match="boomdist 2.3"):
+        reg.engine_names("reference,boom")
+
+
+def test_two_distributions_registering_one_name_are_refused_naming_both(monkeypatch, fresh_registry):
+    clash = _complete("reference")
+    _real_plus(monkeypatch, _EntryPoint("reference", clash, dist=("clashref", "0.1")))
     with pytest.raises(InputError) as info:
         reg.plugins()
-    assert "half" in str(info.value) and "lacks step_perturbed, faults" in str(info.value)
-
-    monkeypatch.setattr(reg.metadata, "entry_points", lambda group: [_EntryPoint("alias", misnamed)])
-    reg.plugins.cache_clear()
-    with pytest.raises(InputError, match="calls itself 'other'"):
-        reg.plugins()
+    msg = str(info.value)
+    assert msg.startswith(f"entry point {reg.GROUP}: reference: registered by rsmcheck ")
+    assert "and by clashref 0.1" in msg and msg.endswith("keep one: pip uninstall clashref")
 
 
 def test_two_plug_ins_cannot_own_one_table(monkeypatch, fresh_registry):
@@ -146,3 +179,40 @@ def test_a_finer_run_with_options_the_engine_does_not_take_is_refused(monkeypatc
     monkeypatch.setattr(type(ref), "refined_options", lambda self, c: {}, raising=False)
     with pytest.raises(InputError, match="gives no option"):
         reg.refined_options("reference", case)
+
+
+def test_a_broken_plug_in_stops_only_the_commands_that_name_it(monkeypatch, fresh_registry, capsys):
+    """`--help`, `cases` and `engines` run beside a plug-in whose import raises; the first
+    two say in one line that it is ignored, `engines` lists it as broken with its
+    distribution; a command that names it is one line, exit 2, no traceback."""
+    from rsmcheck.cli import main
+
+    _real_plus(monkeypatch, _EntryPoint("boom", RuntimeError("no licence server"), dist=("boomdist", "2.3")))
+    line = ("rsmcheck: ignoring engine plug-in 'boom' from boomdist 2.3 does not load: "
+            "fake.module:boom does not import (RuntimeError: no licence server)\n")
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0 and capsys.readouterr().err == line
+    assert main(["cases"]) == 0
+    out = capsys.readouterr()
+    assert out.err == line and "free_drift" in out.out
+    assert main(["engines"]) == 0
+    out = capsys.readouterr()
+    assert out.err == "" and "reference" in out.out
+    assert [s for s in out.out.splitlines() if s.startswith("boom")] == [
+        f"{'boom':12s} {'-':12s} {'-':9s} {'':19s} {'boomdist 2.3':26s} BROKEN: "
+        "fake.module:boom does not import (RuntimeError: no licence server)"]
+    assert main(["run", "free_drift", "--short", "--engine", "boom"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 2 and "Traceback" not in err
+    assert err.endswith("rsmcheck: --engine: boom: engine plug-in 'boom' from boomdist 2.3 does not load: "
+                        "fake.module:boom does not import (RuntimeError: no licence server)\n")
+
+
+def test_a_name_clash_stops_every_command_in_one_line(monkeypatch, fresh_registry, capsys):
+    from rsmcheck.cli import main
+
+    _real_plus(monkeypatch, _EntryPoint("reference", _complete("reference"), dist=("clashref", "0.1")))
+    assert main(["cases"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "registered by rsmcheck" in err and "pip uninstall clashref" in err
