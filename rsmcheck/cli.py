@@ -17,6 +17,7 @@ from typing import Callable, Sequence
 
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
+from rsmcheck.core.options import engines_option
 from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare, executor, fuzz, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
@@ -41,9 +42,9 @@ def _cmd_cases(args: argparse.Namespace) -> int:
     return 0
 
 
-def _engine_names(choice: str | None, option: str = "--engine") -> list[str]:
-    """The engines `--engine`/`--engines` names ("all", a comma-separated list, or None for
-    the default engines), each with its libraries installed."""
+def _engine_names(choice: str | None, option: str = "--engines") -> list[str]:
+    """The engines `--engines` names ("all", a comma-separated list, or None for the default
+    engines), each with its libraries installed."""
     names = engine_names(choice)
     for n in names:
         require(n, option)
@@ -69,7 +70,7 @@ def _cmd_engines(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out")  # before anything runs: an existing file there is a bad input
     cases = [load_case(name) for name in args.case]  # validate every case before running any
-    engines = _engine_names(args.engine) if args.engine else _engine_names(None)[:1]
+    engines = _engine_names(args.engines) if args.engines else _engine_names(None)[:1]
     out.mkdir(parents=True, exist_ok=True)
     for case in cases:
         path = run_case(case, engines, args.short, out,
@@ -88,7 +89,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     folder = out.parent
     if not args.render_only:
-        res = collect(folder, args.short, _engine_names(args.engine), args.cases or None, _progress,
+        res = collect(folder, args.short, _engine_names(args.engines), args.cases or None, _progress,
                       rerun=args.rerun)
         failures = list(res.failures)
     else:
@@ -135,7 +136,7 @@ def _fmt(x: float) -> str:
 def _cmd_check(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out") if args.out else None
     cases = [load_case(name) for name in args.case]  # validate every case before running any
-    engines = _engine_names(args.engines, "--engines")
+    engines = _engine_names(args.engines)
     if len(engines) < 2:
         raise InputError("--engines", args.engines, "a check compares two or more engines")
     options = _engine_options(args.option, engines)
@@ -196,7 +197,7 @@ def _cmd_budget(args: argparse.Namespace) -> int:
     previous = budget.read_document(out)  # and so is a file that is not a budget document
     suggest = budget.Suggest(args.factor, args.out)
     cases = _budget_cases(args.case, args.short)
-    engines = _engine_names(args.engines, "--engines")
+    engines = _engine_names(args.engines)
     if len(engines) < 2:
         raise InputError("--engines", args.engines, "a budget compares two or more engines")
     if args.apply and len(engines) != 2:
@@ -244,7 +245,7 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     # lazy: at the top its scipy would add ≈ 0.5 s to every command (`rsmcheck --help` takes 0.4 s)
     from rsmcheck.orchestration.modes import arm_rows, link_rows
 
-    engines = _engine_names(args.engines, "--engines")
+    engines = _engine_names(args.engines)
     options = _engine_options(args.option, engines)
     links = link_rows(options=options, engines=engines)
     arms = arm_rows(options=options, engines=engines)
@@ -293,7 +294,7 @@ def _gate_cases(names: Sequence[str] | None) -> list:
 
 def _cmd_fuzz(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out")
-    engines = _engine_names(args.engines, "--engines") if args.engines else None
+    engines = _engine_names(args.engines) if args.engines else None
     doc = fuzz.campaign(args.n, args.seed, out, engines, workers=0 if args.serial else 2,
                         progress=None if args.json else _progress, first=args.first)
     path = fuzz.write_document(doc, out)
@@ -331,7 +332,7 @@ def _goldens(args: argparse.Namespace) -> Path:
 def _cmd_gate(args: argparse.Namespace) -> int:
     cases = _gate_cases(args.case)
     if args.tolerances:
-        rows = gate.tolerance_table(cases, _engine_names(args.engine), _goldens(args))
+        rows = gate.tolerance_table(cases, _engine_names(args.engines), _goldens(args))
         if args.json:
             print(dumps_json({"tolerances": rows}))
             return 0
@@ -342,7 +343,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
                   f"{r['perturbation_change']:10.2e} {r['step_change']:10.2e} {r['path_change']:10.2e} "
                   f"{r['largest_value']:10.2e}  {r['set_by']}")
         return 0
-    results = gate.gate(cases, _engine_names(args.engine), _goldens(args), None if args.json else _progress)
+    results = gate.gate(cases, _engine_names(args.engines), _goldens(args), None if args.json else _progress)
     if args.json:
         print(dumps_json({"gate": [r.as_dict() for r in results]}))
     else:
@@ -392,7 +393,7 @@ def _cmd_bless(args: argparse.Namespace) -> int:
     root = _goldens(args)
     output_dir(str(root), "--goldens")
     cases = _gate_cases(args.case)
-    entries = gate.bless(cases, _engine_names(args.engine), args.reason, root, _progress,
+    entries = gate.bless(cases, _engine_names(args.engines), args.reason, root, _progress,
                          _code_paths(args.code_paths))
     for case, engine, what in entries:
         print(f"{case} / {engine}: " + "; ".join(what))
@@ -445,8 +446,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("cases", help="list the cases, one line each")
     p = sub.add_parser("run", help="simulate cases and write DIR/CASE.h5")
     p.add_argument("case", nargs="+", help="case name (cases/NAME.toml) or path to a case file")
-    p.add_argument("--engine", default=None,
-                   help="ENGINE, A,B or all (default: the first default engine, the model under test)")
+    engines_option(p, "ENGINE, A,B or all (default: the first default engine, the model under test)")
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
     p.add_argument("--from", dest="from_dir", default=None,
@@ -457,7 +457,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("case", nargs="+", help="case name (cases/NAME.toml) or path to a case file")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
     p.add_argument("--json", action="store_true", help="one JSON object {\"checks\": [...]} on stdout")
-    p.add_argument("--engines", metavar="A,B", help="the engines compared, the model under test first "
+    engines_option(p, "the engines compared, the model under test first "
                                                      "(default: the default engines, `rsmcheck engines`)")
     p.add_argument("--option", action="append", metavar="ENGINE:KEY=VALUE",
                    help="an engine's constructor option, e.g. reference:n_modes=4 (repeatable)")
@@ -474,7 +474,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
     p.add_argument("--out", default=budget.DEFAULT_OUT,
                    help=f"the JSON document; its other cases are kept (default: {budget.DEFAULT_OUT})")
-    p.add_argument("--engines", metavar="A,B", help="the engines, the model under test first "
+    engines_option(p, "the engines, the model under test first "
                                                      "(default: the default engines, `rsmcheck engines`)")
     p.add_argument("--runs", metavar="DIR", help="read the runs at the case's settings from DIR/CASE.h5 where "
                                                  "current, store the ones made there (as check --out and the "
@@ -489,13 +489,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run one after the other in this process (default: 2 processes)")
     p = sub.add_parser("modes", help="link and arm eigenfrequencies: analytic, reference, Exudyn")
     p.add_argument("--json", action="store_true", help="one JSON object {\"links\": [...], \"arms\": [...]}")
-    p.add_argument("--engines", metavar="A,B", help="the engines (default: the default engines)")
+    engines_option(p, "the engines (default: the default engines)")
     p.add_argument("--option", action="append", metavar="ENGINE:KEY=VALUE",
                    help="an engine's constructor option, e.g. reference:n_modes=4 (repeatable)")
     p = sub.add_parser("report", help="run what is not stored yet, then write one self-contained HTML page")
     p.add_argument("--out", default="out/report.html",
                    help="HTML file; the runs and tables it is built from are stored in its folder")
-    p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
+    engines_option(p, "ENGINE, A,B or all (default: the default engines)")
     p.add_argument("--short", action="store_true", help="the compressed variant of each case")
     p.add_argument("--cases", nargs="+", metavar="CASE", help="only these cases (default: all)")
     p.add_argument("--rerun", action="store_true", help="run everything again, even what is stored and current")
@@ -503,7 +503,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="only render what is stored (seconds); run nothing")
     p = sub.add_parser("gate", help="run the cases' short variants and compare each engine with its golden")
     p.add_argument("case", nargs="*", help="case names (default: every stand-alone case)")
-    p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
+    engines_option(p, "ENGINE, A,B or all (default: the default engines)")
     p.add_argument("--json", action="store_true", help="one JSON object {\"gate\": [...]} on stdout")
     p.add_argument("--tolerances", action="store_true",
                    help="print the goldens' gate tolerances and what they were measured from; run nothing")
@@ -511,7 +511,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bless", help="re-run cases and rewrite their goldens (with --reason, into the changelog)")
     p.add_argument("case", nargs="+", help="case names, or 'all'")
     p.add_argument("--reason", help="why the results changed and why the new ones are right (required)")
-    p.add_argument("--engine", default=None, help="ENGINE, A,B or all (default: the default engines)")
+    engines_option(p, "ENGINE, A,B or all (default: the default engines)")
     p.add_argument("--code-paths", metavar="P,Q|none", default=None,
                    help="the other CPUs' code paths to measure the gate tolerances on (default: every one this "
                         "CPU can run: x86-64-v4, x86-64-v3, x86-64-v2, blas-1-thread; docs/gate.md)")
@@ -523,7 +523,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--first", type=_whole(0), default=0, help="index of the first scenario (default 0)")
     p.add_argument("--out", default=fuzz.DEFAULT_OUT, help=f"folder of the scenarios, the failing case files and "
                                                             f"fuzz.json (default: {fuzz.DEFAULT_OUT})")
-    p.add_argument("--engines", metavar="A,B", help="the two engines, the model under test first "
+    engines_option(p, "the two engines, the model under test first "
                                                      "(default: the default engines)")
     p.add_argument("--json", action="store_true", help="the document on stdout: {\"scenarios\": [...], ...}")
     p.add_argument("--serial", action="store_true", help="run one after the other in this process")

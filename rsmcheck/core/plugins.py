@@ -244,7 +244,7 @@ def broken_plugins() -> dict[str, BrokenPlugin]:
 plugins.cache_clear = _registry.cache_clear  # type: ignore[attr-defined]
 
 
-def plugin(name: str, option: str = "--engine") -> EnginePlugin:
+def plugin(name: str, option: str = "--engines") -> EnginePlugin:
     """The plug-in `name`; an unknown name is an `InputError` listing the known ones, a
     broken one an `InputError` naming its distribution and why it does not load."""
     known = plugins()
@@ -270,7 +270,7 @@ def available(name: str) -> bool:
     return all(importlib.util.find_spec(m) is not None for m in plugin(name).requires)
 
 
-def require(name: str, option: str = "--engine") -> EnginePlugin:
+def require(name: str, option: str = "--engines") -> EnginePlugin:
     """The plug-in `name`, its libraries checked: a missing one is one line naming the pip
     extra that installs it."""
     p = plugin(name, option)
@@ -286,7 +286,7 @@ def make_engine(name: str, case: Case, start: StartState | None = None, **option
     own exact state on top when it can take it: `import_state`, same model size)."""
     p = require(name)
     if not p.simulates:
-        raise InputError("--engine", name, f"{p.label} checks but does not simulate")
+        raise InputError("--engines", name, f"{p.label} checks but does not simulate")
     engine = p.make(case, start=start, **options)
     if start is not None and start.exact is not None:
         engine.import_state(dict(start.exact))
@@ -294,16 +294,16 @@ def make_engine(name: str, case: Case, start: StartState | None = None, **option
 
 
 def engine_names(choice: str | None) -> list[str]:
-    """The engines a command's `--engine`/`--engines` names: "all" (every registered engine
+    """The engines a command's `--engines` names: "all" (every registered engine
     that simulates), a comma-separated list, or None (the default engines)."""
     if choice is None:
         return list(default_engines())
     names = list(simulators()) if choice == "all" else [n.strip() for n in choice.split(",") if n.strip()]
     for n in names:
         if plugin(n).simulates is False:
-            raise InputError("--engine", n, f"{plugin(n).label} checks but does not simulate")
+            raise InputError("--engines", n, f"{plugin(n).label} checks but does not simulate")
     if len(set(names)) != len(names):
-        raise InputError("--engine", choice, "names an engine twice")
+        raise InputError("--engines", choice, "names an engine twice")
     return names
 
 

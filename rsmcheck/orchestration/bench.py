@@ -64,6 +64,7 @@ from typing import Any, Callable, Sequence
 
 from rsmcheck.core.cases import Case, list_cases, load_case
 from rsmcheck.core.errors import InputError
+from rsmcheck.core.options import engines_option
 from rsmcheck.core.plugins import available, engine_names, plugin, require, with_capability
 from rsmcheck.orchestration.bench_diff import compare, diff_table, read_bench
 from rsmcheck.orchestration.targets import read_targets, targets_table
@@ -339,7 +340,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the cases' --short variants (default), their full length, both, or what the "
                              "speed targets read: the full mission and every case short")
     parser.add_argument("--full", action="store_true", help="same as --variant full")
-    parser.add_argument("--engine", default="all", help="ENGINE, A,B or all (default: every engine that simulates)")
+    engines_option(parser, "ENGINE, A,B or all (default: every engine that simulates)", default="all")
     parser.add_argument("--cases", nargs="+", help="only these cases (default: every case and the mission)")
     parser.add_argument("--jobs", type=_positive_int, default=1,
                         help="runs at a time: the local Dask cluster's workers, each running one run at a time in "
@@ -360,7 +361,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _show_stored(args)
     base = read_bench(args.baseline) if args.baseline else None  # before an hour of runs, not after
     out = output_file(args.out, "--out") if args.out else None
-    engines = engine_names(args.engine)
+    engines = engine_names(args.engines)
     for e in engines:
         require(e)
     variants = ["full"] if args.full else (list(VARIANTS) if args.variant == "both" else

@@ -79,8 +79,10 @@ def _machine(doc: dict[str, Any]) -> str:
 
 
 def _command(doc: dict[str, Any]) -> str:
-    """The command that made a bench document, without where it wrote it."""
-    return re.sub(r"\s+--(?:out \S+|json)\b", "", doc.get("command", "rsmcheck bench"))
+    """The command that made a bench document, without where it wrote it, in today's
+    spelling (`--engine` is now `--engines`)."""
+    command = re.sub(r"\s+--(?:out \S+|json)\b", "", doc.get("command", "rsmcheck bench"))
+    return re.sub(r"--engine\b(?!s)", "--engines", command)
 
 
 # ---------------------------------------------------------------------------------------

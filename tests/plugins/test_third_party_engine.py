@@ -156,7 +156,7 @@ def test_check_compares_the_reference_with_the_plugin(checked):
 def test_bless_then_gate_the_plugin(plugin_site, tmp_path):
     goldens = tmp_path / "goldens"
     reason = "third-party plug-in test: first golden of twomode"
-    bless = rsmcheck("bless", CASE, "--engine", "twomode", "--reason", reason, "--goldens", str(goldens),
+    bless = rsmcheck("bless", CASE, "--engines", "twomode", "--reason", reason, "--goldens", str(goldens),
                      "--code-paths", "blas-1-thread",
                      site=plugin_site, cwd=tmp_path)
     assert bless.returncode == 0, bless.stderr
@@ -165,13 +165,13 @@ def test_bless_then_gate_the_plugin(plugin_site, tmp_path):
     assert not list(goldens.glob(f"{CASE}.reference.*"))
     assert reason in (goldens / "CHANGELOG.md").read_text()
 
-    gate = rsmcheck("gate", CASE, "--engine", "twomode", "--goldens", str(goldens), site=plugin_site, cwd=tmp_path)
+    gate = rsmcheck("gate", CASE, "--engines", "twomode", "--goldens", str(goldens), site=plugin_site, cwd=tmp_path)
     assert gate.returncode == 0, gate.stdout + gate.stderr
     assert f"{CASE} / twomode: unchanged" in gate.stdout and "1 of 1 runs unchanged" in gate.stdout
 
     # the tolerances were measured with the plug-in's own perturbations: its step_perturbed
     # (rtol × 1.001) reached its engine, whose steps then moved the run
-    tol = rsmcheck("gate", CASE, "--engine", "twomode", "--goldens", str(goldens), "--tolerances", "--json",
+    tol = rsmcheck("gate", CASE, "--engines", "twomode", "--goldens", str(goldens), "--tolerances", "--json",
                    site=plugin_site, cwd=tmp_path)
     assert tol.returncode == 0, tol.stderr
     rows = json.loads(tol.stdout)["tolerances"]
@@ -180,7 +180,7 @@ def test_bless_then_gate_the_plugin(plugin_site, tmp_path):
     assert max(r["perturbation_change"] for r in rows) > 0.0
 
     # the same golden read by a gate that does not know the engine: one line, exit 2
-    unknown = rsmcheck("gate", CASE, "--engine", "twomode", "--goldens", str(goldens), site=None, cwd=tmp_path)
+    unknown = rsmcheck("gate", CASE, "--engines", "twomode", "--goldens", str(goldens), site=None, cwd=tmp_path)
     assert unknown.returncode == 2
     assert "no such engine" in unknown.stderr and len(_lines(unknown.stderr)) == 1
 
@@ -193,7 +193,7 @@ def test_report_draws_the_plugin(plugin_site, checked):
     proc, folder = checked
     assert proc.returncode in (0, 1), proc.stderr
     page = folder / "report.html"
-    rep = rsmcheck("report", "--short", "--cases", CASE, "--engine", ",".join(ENGINES), "--out", str(page),
+    rep = rsmcheck("report", "--short", "--cases", CASE, "--engines", ",".join(ENGINES), "--out", str(page),
                    site=plugin_site, cwd=folder)
     assert rep.returncode == 0, rep.stdout + rep.stderr
     assert "stored runs reused" in rep.stderr  # the runs (b) stored: nothing simulated again

@@ -198,6 +198,17 @@ def test_baumgarte_keeps_closed_squeeze_on_the_constraint_20s():
     assert res <= RESIDUAL_TOL_M
 
 
+def _residual_history(engine: ReferenceEngine, u: Inputs, n: int = 51, dt: float = 0.01):
+    """(t, φ_T(t)) at n samples dt apart from the engine's state, inputs held at u."""
+    t, phi = [], []
+    for k in range(n):
+        if k:
+            engine.advance(dt * k, u)
+        t.append(engine.time())
+        phi.append(engine.observe(u)["constraint_residual"])
+    return np.array(t), np.array(phi)
+
+
 def test_baumgarte_returns_a_violated_constraint_along_eq_12():
     """Eq. (12), φ̈ + 2α φ̇ + β² φ = 0, is what the constrained solve imposes on φ_T whatever
     the forces, so a chain started off its constraint (arm 2's shoulder frame turned by
@@ -211,13 +222,7 @@ def test_baumgarte_returns_a_violated_constraint_along_eq_12():
     state["x"][6] += 1e-5  # q[3:9] are the joint frame angles; q[6] is arm 2's shoulder
     engine.import_state(state)
     u = Inputs(tau_m=np.array(case.controller.motor_torques, float), tau_B=case.controller.base_torque)
-    t, phi = [], []
-    for k in range(51):
-        if k:
-            engine.advance(0.01 * k, u)
-        t.append(engine.time())
-        phi.append(engine.observe(u)["constraint_residual"])
-    t, phi = np.array(t), np.array(phi)
+    t, phi = _residual_history(engine, u)
     # φ(t) = φ(0) (1 + αt) e^(−αt), each component (eq. 12 with α = β, φ̇(0) = 0)
     expected = np.outer((1.0 + alpha * t) * np.exp(-alpha * t), phi[0])
     scale = np.abs(phi[0]).max()
@@ -244,13 +249,7 @@ def test_baumgarte_returns_a_violated_rate_along_eq_12(make_case):
     state["x"][lay.ns + 6] += 1e-4  # arm 2's shoulder frame rate (q[6], as above)
     engine.import_state(state)
     u = Inputs(tau_m=np.zeros(6), tau_B=0.0)
-    t, phi = [], []
-    for k in range(51):
-        if k:
-            engine.advance(0.01 * k, u)
-        t.append(engine.time())
-        phi.append(engine.observe(u)["constraint_residual"])
-    t, phi = np.array(t), np.array(phi)
+    t, phi = _residual_history(engine, u)
     shape = t * np.exp(-alpha * t)
     rate0 = shape @ phi / (shape @ shape)  # φ̇_T(0) per component, least squares
     scale = np.abs(phi).max()

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from rsmcheck.cli import main
+from rsmcheck.core.options import ALIAS_NOTE
 from rsmcheck.core.observables import NAMES
 from rsmcheck.core.store import read_run
 
@@ -106,10 +107,25 @@ def test_usage_errors_exit_2_with_one_line(capsys, argv):
 
 
 def test_an_engine_no_plug_in_registers_exits_2_naming_the_registered_ones(capsys, tmp_path):
-    assert main(["run", "free_drift", "--engine", "warp", "--out", str(tmp_path)]) == 2
+    assert main(["run", "free_drift", "--engines", "warp", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert_one_clean_line(err, "warp")
     assert "registered: reference, exudyn" in err
+
+
+@pytest.mark.parametrize("argv", [["run", "free_drift", "--out", "OUT"], ["gate", "free_drift"],
+                                  ["bless", "free_drift", "--reason", "r"], ["report", "--out", "OUT/r.html"],
+                                  ["bench", "--cases", "free_drift"]])
+def test_engine_is_the_old_spelling_of_engines_and_says_so(capsys, tmp_path, argv):
+    """Every command that takes engines takes `--engines`; `--engine` is read as it for one
+    release, with one line on stderr.  (An unknown engine stops each before any run.)"""
+    argv = [a.replace("OUT", str(tmp_path)) for a in argv]
+    assert main(argv + ["--engines", "warp"]) == 2
+    err = capsys.readouterr().err
+    assert_one_clean_line(err, "--engines: warp: no such engine")
+    assert main(argv + ["--engine", "warp"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(ALIAS_NOTE) and "--engines: warp: no such engine" in err.splitlines()[1]
 
 
 def test_bad_case_in_a_real_process(tmp_path):
@@ -365,10 +381,10 @@ def _fake_pinocchio(monkeypatch):
 
 
 @pytest.mark.parametrize("argv, fake, key", [
-    (["bench", "--json", "--cases", "free_drift", "--engine", "reference"], _fake_bench, "runs"),
+    (["bench", "--json", "--cases", "free_drift", "--engines", "reference"], _fake_bench, "runs"),
     (["check", "free_drift", "--json"], _fake_check, "checks"),
-    (["gate", "free_drift", "--engine", "reference", "--json"], _fake_gate, "gate"),
-    (["gate", "free_drift", "--engine", "reference", "--json", "--tolerances"], _fake_gate, "tolerances"),
+    (["gate", "free_drift", "--engines", "reference", "--json"], _fake_gate, "gate"),
+    (["gate", "free_drift", "--engines", "reference", "--json", "--tolerances"], _fake_gate, "tolerances"),
     (["modes", "--json"], _fake_modes, "links"),
     (["pinocchio", "--json", "--modes", "0"], _fake_pinocchio, "checks"),
 ], ids=["bench", "check", "gate", "gate_tolerances", "modes", "pinocchio"])
@@ -386,7 +402,7 @@ def test_every_json_output_is_strict(monkeypatch, capsys, argv, fake, key):
 def test_bench_json_spells_out_a_failed_run(monkeypatch, capsys, tmp_path):
     _fake_bench(monkeypatch)
     out = tmp_path / "bench.json"
-    assert main(["bench", "--json", "--cases", "free_drift", "--engine", "reference", "--out", str(out)]) == 1
+    assert main(["bench", "--json", "--cases", "free_drift", "--engines", "reference", "--out", str(out)]) == 1
     doc = strict_loads(capsys.readouterr().out)
     assert doc["runs"][0]["wall_s"] is None and doc["runs"][0]["error"] == "RuntimeError: boom"
     assert doc["rhs_us"]["pinocchio_aba"] is None

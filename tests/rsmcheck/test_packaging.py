@@ -132,7 +132,7 @@ def test_the_base_install_names_the_extra_an_engine_needs(installed, tmp_path):
                               text=True, timeout=300)
 
     out = tmp_path / "out"
-    run = rsmcheck("run", "free_drift", "--short", "--engine", "exudyn", "--out", str(out))
+    run = rsmcheck("run", "free_drift", "--short", "--engines", "exudyn", "--out", str(out))
     assert run.returncode == 2 and run.stderr.count("\n") == 1 and "Traceback" not in run.stderr, run.stderr
     assert "pip install 'rsmcheck[exudyn]'" in run.stderr and not out.exists()
     pin = rsmcheck("pinocchio", "--json")

@@ -109,7 +109,7 @@ def test_an_incomplete_misnamed_or_failing_plug_in_is_left_out_and_named(monkeyp
     assert "RuntimeError: no licence server" in broken["boom"].reason
     with pytest.raises(InputError) as info:
         reg.plugin("boom")
-    assert str(info.value) == ("--engine: boom: engine plug-in 'boom' from boomdist 2.3 does not load: "
+    assert str(info.value) == ("--engines: boom: engine plug-in 'boom' from boomdist 2.3 does not load: "
                                "fake.module:boom does not import (RuntimeError: no licence server)")
     with pytest.raises(InputError, match="boomdist 2.3"):
         reg.engine_names("reference,boom")
@@ -202,10 +202,10 @@ def test_a_broken_plug_in_stops_only_the_commands_that_name_it(monkeypatch, fres
     assert [s for s in out.out.splitlines() if s.startswith("boom")] == [
         f"{'boom':12s} {'-':12s} {'-':9s} {'':19s} {'boomdist 2.3':26s} BROKEN: "
         "fake.module:boom does not import (RuntimeError: no licence server)"]
-    assert main(["run", "free_drift", "--short", "--engine", "boom"]) == 2
+    assert main(["run", "free_drift", "--short", "--engines", "boom"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 2 and "Traceback" not in err
-    assert err.endswith("rsmcheck: --engine: boom: engine plug-in 'boom' from boomdist 2.3 does not load: "
+    assert err.endswith("rsmcheck: --engines: boom: engine plug-in 'boom' from boomdist 2.3 does not load: "
                         "fake.module:boom does not import (RuntimeError: no licence server)\n")
 
 

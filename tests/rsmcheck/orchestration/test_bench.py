@@ -123,7 +123,7 @@ def test_variant_targets_runs_the_full_mission_then_every_case_short(monkeypatch
 
     monkeypatch.setattr(bench, "run_all", fake_run_all)
     monkeypatch.setattr(bench, "rhs_timings", lambda: {})
-    assert main(["--variant", "targets", "--engine", "reference,exudyn", "--cases", "free_drift", "capture",
+    assert main(["--variant", "targets", "--engines", "reference,exudyn", "--cases", "free_drift", "capture",
                  "--json"]) == 0
     assert seen == [("mission", "reference", "full"), ("mission", "exudyn", "full"),
                     ("free_drift", "reference", "short"), ("free_drift", "exudyn", "short"),

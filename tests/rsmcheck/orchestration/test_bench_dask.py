@@ -142,8 +142,8 @@ def test_scheduler_reaches_bench_before_or_after_it(monkeypatch, capsys):
     monkeypatch.delenv(executor.SCHEDULER_ENV, raising=False)
     monkeypatch.setattr(executor, "CONNECT_TIMEOUT_S", 1.0)
     address = f"tcp://127.0.0.1:{_free_port()}"
-    assert main(["--scheduler", address, "bench", "--cases", "free_drift", "--engine", "reference"]) == 2
-    assert main(["bench", "--cases", "free_drift", f"--scheduler={address}", "--engine", "reference"]) == 2
+    assert main(["--scheduler", address, "bench", "--cases", "free_drift", "--engines", "reference"]) == 2
+    assert main(["bench", "--cases", "free_drift", f"--scheduler={address}", "--engines", "reference"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and all(e.startswith("rsmcheck: --scheduler: ") and address in e for e in err), err
     assert executor.scheduler_address() is None
@@ -158,7 +158,7 @@ def test_a_cluster_without_the_bench_resource_is_one_line(monkeypatch, capsys):
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         try:
             assert main(["bench", "--scheduler", cluster.scheduler_address, "--cases", "free_drift",
-                         "--engine", "reference"]) == 2
+                         "--engines", "reference"]) == 2
         finally:
             executor.close()
     err = capsys.readouterr().err

@@ -283,7 +283,7 @@ def test_bad_goldens_are_input_errors(tiny, tiny_runs, tmp_path):
 def test_cli_bless_gate_unchanged_moved_and_bad_input(tiny, tmp_path, capsys):
     case, _ = tiny
     goldens = tmp_path / "goldens"
-    args = [str(case.path), "--engine", "reference", "--goldens", str(goldens)]
+    args = [str(case.path), "--engines", "reference", "--goldens", str(goldens)]
     one_path = ["--code-paths", "blas-1-thread"]  # the others compile every kernel anew (test_code_paths.py)
     assert main(["bless", *args]) == 2  # no reason, no bless
     assert "--reason" in capsys.readouterr().err
