@@ -200,18 +200,35 @@ class Stored:
         return bool(self.verdict.get("provenance", {}).get("short", True))
 
 
-def load_stored(folder: Path, case_names: Sequence[str] | None = None) -> Stored:
-    """Read the verdict, runs and tables that `rsmcheck.orchestration.collect` stored in `folder`."""
+def only_engines(verdict: dict, engines: Sequence[str]) -> dict:
+    """The verdict's rows that judge `engines` alone: a comparison row whose pair is among
+    them, a gate row of one of them (the rigid checks judge the model, not an engine)."""
+    keep = set(engines)
+    out = dict(verdict)
+    for key in ("checks", "mission"):
+        out[key] = [r for r in verdict.get(key, []) if set(r.get("engines", ())) <= keep]
+    out["gate"] = [g for g in verdict.get("gate", []) if g.get("engine") in keep]
+    return out
+
+
+def load_stored(folder: Path, case_names: Sequence[str] | None = None,
+                engines: Sequence[str] | None = None) -> Stored:
+    """Read the verdict, runs and tables that `rsmcheck.orchestration.collect` stored in
+    `folder`; `engines` (None: every engine stored) keeps those engines' runs and rows only,
+    in that order: a run file may hold engines an earlier report ran."""
     path = folder / VERDICT
     if not path.is_file():
         raise InputError(str(path), "verdict", "no stored results: run `rsmcheck report` (it collects first)")
     verdict = json.loads(path.read_text())
+    if engines is not None:
+        verdict = only_engines(verdict, engines)
     cases = [load_case(n) for n in case_names] if case_names else [load_case(p) for p in list_cases()]
     st = Stored(folder, verdict, cases)
     for case in cases:
         run_path = folder / "runs" / f"{case.name}.h5"
         if run_path.is_file():
-            st.runs[case.name] = read_run(run_path)[0]
+            runs = read_run(run_path)[0]
+            st.runs[case.name] = runs if engines is None else {e: runs[e] for e in engines if e in runs}
     if (folder / MODES).is_file():
         st.modes = json.loads((folder / MODES).read_text())
     return st
@@ -338,9 +355,11 @@ def _environment() -> jinja2.Environment:
     return env
 
 
-def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, data_dir: Path = DATA_DIR) -> Path:
-    """Write the page for the results stored in `folder` (and the studies in `data_dir`) to `out`."""
-    st = load_stored(folder, case_names)
+def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, data_dir: Path = DATA_DIR,
+           engines: Sequence[str] | None = None) -> Path:
+    """Write the page for the results stored in `folder` (and the studies in `data_dir`) to
+    `out`: of `engines` only (None: every engine stored)."""
+    st = load_stored(folder, case_names, engines)
     page = Page()
     v = st.verdict
     checks = _check_map(v.get("checks", []) + v.get("mission", []))

@@ -88,13 +88,14 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from rsmcheck.report.build import render
 
     folder = out.parent
+    engines = _engine_names(args.engines) if args.engines else None
     if not args.render_only:
-        res = collect(folder, args.short, _engine_names(args.engines), args.cases or None, _progress,
-                      rerun=args.rerun)
+        engines = engines or _engine_names(None)
+        res = collect(folder, args.short, engines, args.cases or None, _progress, rerun=args.rerun)
         failures = list(res.failures)
     else:
         failures = []
-    path = render(folder, out, args.cases or None)
+    path = render(folder, out, args.cases or None, engines=engines)  # those asked for, not all stored
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)"
           + (f"; did not run: {', '.join(failures)}" if failures else ""))
     return 1 if failures else 0

@@ -413,7 +413,7 @@ def _print(doc: dict, as_json: bool) -> None:
 
 
 #: the options that make runs, meaningless with --stored
-_RUN_OPTIONS = ("variant", "full", "engine", "cases", "jobs", "out")
+_RUN_OPTIONS = ("variant", "full", "engines", "cases", "jobs", "out")
 
 
 def _show_stored(args: argparse.Namespace) -> int:

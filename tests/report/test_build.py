@@ -7,7 +7,7 @@ import json
 import re
 
 from rsmcheck.orchestration.compare import check_runs
-from rsmcheck.report.build import departures_table, fmt, render, verdict_rows
+from rsmcheck.report.build import departures_table, fmt, only_engines, render, verdict_rows
 
 SECTIONS = ("verdict", "provenance", "departures", "mission", "paper", "cases", "pinocchio", "modes", "studies",
             "speed", "faults")
@@ -245,3 +245,18 @@ def test_without_stored_studies_or_goldens_each_section_says_so(rendered, tmp_pa
     assert f"{n} gate comparisons left out" in page
     assert len(verdict_rows(doc, goldens=False)) == len(verdict_rows(doc)) - n
     assert not any(r.kind == "gate" and "no golden" in r.note for r in verdict_rows(doc, goldens=False))
+
+
+def test_the_page_draws_the_engines_asked_for_only(rendered, tmp_path):
+    """A run file may hold engines an earlier report ran: `engines` keeps those asked for,
+    their curves and the rows that judge them alone (here the reference alone: no pair)."""
+    page = render(rendered.folder, tmp_path / "page.html", ["free_drift"], data_dir=tmp_path,
+                  engines=["reference"]).read_text()
+    full = render(rendered.folder, tmp_path / "full.html", ["free_drift"], data_dir=tmp_path).read_text()
+    for html_text, drawn in ((page, False), (full, True)):
+        names = {tr.get("name", "") for fig in _figures(html_text) for tr in fig["data"]}
+        assert any(n.startswith("reference") for n in names)
+        assert any(n.startswith("exudyn") for n in names) is drawn
+    doc = only_engines(rendered.verdict, ["reference"])
+    assert doc["checks"] == [] and all(g["engine"] == "reference" for g in doc["gate"])
+    assert only_engines(rendered.verdict, ["reference", "exudyn"])["checks"] == rendered.verdict["checks"]
