@@ -94,6 +94,12 @@ class VerdictRow:
     passed: bool
     note: str = ""
     anchor: str = ""
+    pair: str = ""  # a comparison's engines, the one under test first ("" for gate and rigid rows)
+
+
+def pair_label(row: dict) -> str:
+    """'reference vs exudyn': the engines a comparison row judges, the one under test first."""
+    return " vs ".join(row.get("engines", ()))
 
 
 def no_golden(g: dict) -> bool:
@@ -122,7 +128,7 @@ def verdict_rows(verdict: dict, goldens: bool = True) -> list[VerdictRow]:
             anchor = r["case"].replace("/", "-")
             rows.append(VerdictRow(kind, r["case"], r["observable"], metric_label(r.get("metric", ""), r.get("window")),
                                    r["error"], r["tolerance"],
-                                   _margin(r.get("margin")), bool(r["pass"]), note, anchor))
+                                   _margin(r.get("margin")), bool(r["pass"]), note, anchor, pair_label(r)))
     for g in verdict.get("gate", []):
         if not goldens and no_golden(g):
             continue
@@ -272,8 +278,26 @@ def _md(text: str) -> str:
     return re.sub(r"`(.+?)`", r"<code>\1</code>", out)
 
 
-def _check_map(rows: list[dict]) -> dict[tuple[str, str], dict]:
-    return {(r["case"], r["observable"]): r for r in rows}
+def _check_map(rows: list[dict]) -> dict[tuple[str, str], list[dict]]:
+    """(case, observable) → its comparison rows, one per pair of engines: with three engines
+    a row of one pair must not hide another's."""
+    out: dict[tuple[str, str], list[dict]] = {}
+    for r in rows:
+        out.setdefault((r["case"], r["observable"]), []).append(r)
+    return out
+
+
+def _errors_title(rows: list[dict], metric: str) -> str:
+    """' — max_abs error 1.2e-07 vs tolerance 3e-07 (pass)', per pair where there are more."""
+    parts = [(f"{pair_label(r)}: " if len(rows) > 1 else "")
+             + f"error {fmt(r['error'])} vs tolerance {fmt(r['tolerance'])} ({'pass' if r['pass'] else 'FAIL'})"
+             for r in rows]
+    return f" — {metric} " + "; ".join(parts) if parts else ""
+
+
+def _tolerances(rows: list[dict]) -> dict[str, float]:
+    """Each compared engine's tolerance against the first (the difference panel's lines)."""
+    return {r["engines"][1]: r["tolerance"] for r in rows if len(r.get("engines", ())) == 2}
 
 
 def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict]) -> list[dict]:
@@ -291,17 +315,16 @@ def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict]
             pruns = {e: by_engine[e][k][2] for e in names}
             figs = []
             for spec in ph.compare:
-                row = checks.get((f"{case.name}/{ph.name}", spec.observable))
-                title = (f"{spec.observable} [{BY_NAME[spec.observable].unit}] — {metric_label(spec.metric, spec.window)} error "
-                         f"{fmt(row['error']) if row else '–'} vs tolerance {fmt(row['tolerance'] if row else spec.tolerance)}"
-                         + (f" ({'pass' if row['pass'] else 'FAIL'})" if row else ""))
+                found = checks.get((f"{case.name}/{ph.name}", spec.observable), [])
+                title = (f"{spec.observable} [{BY_NAME[spec.observable].unit}]"
+                         + (_errors_title(found, metric_label(spec.metric, spec.window)) if found else
+                            f" — tolerance {fmt(spec.tolerance)}"))
                 figs.append(page.figure(comparison_figure(
                     title, BY_NAME[spec.observable].unit, pruns, spec.observable,
-                    tolerance=row["tolerance"] if row else spec.tolerance, metric=spec.metric, compared=spec.window,
-                    events=run_marks(pruns[names[0]], t0), time_offset=t0, bands=bounds,
+                    tolerance=spec.tolerance, tolerances=_tolerances(found), metric=spec.metric,
+                    compared=spec.window, events=run_marks(pruns[names[0]], t0), time_offset=t0, bands=bounds,
                     window=(t0, t0 + ph.duration))))
-            rows = [checks[(f"{case.name}/{ph.name}", s.observable)] for s in ph.compare
-                    if (f"{case.name}/{ph.name}", s.observable) in checks]
+            rows = [r for s in ph.compare for r in checks.get((f"{case.name}/{ph.name}", s.observable), [])]
             out.append({"id": f"{case.name}-{ph.name}", "title": f"{case.name}: {ph.name}",
                         "phase": ph, "t0": t0, "rows": rows, "figures": figs,
                         "events": [(e, ev) for e, r in pruns.items() for ev in run_marks(r, t0)]})
@@ -328,17 +351,17 @@ def case_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict], g
         figs = []
         for name in compared + [n for n in OVERVIEW if n not in compared]:
             spec = next((s for s in variant.compare if s.observable == name), None)
-            row = checks.get((case.name, name))
+            found = checks.get((case.name, name), []) if spec else []
             title = f"{name} [{BY_NAME[name].unit}]" + (
-                f" — {metric_label(spec.metric, spec.window)} error {fmt(row['error'])} vs tolerance {fmt(spec.tolerance)}"
-                if row and spec else "")
+                _errors_title(found, metric_label(spec.metric, spec.window)) if found else "")
             first = next(iter(runs.values()))
             figs.append(page.figure(comparison_figure(title, BY_NAME[name].unit, runs, name, golden=golden,
                                                       tolerance=spec.tolerance if spec else None,
+                                                      tolerances=_tolerances(found),
                                                       compared=spec.window if spec else None,
                                                       metric=spec.metric if spec else "", events=run_marks(first))))
         out.append({"id": case.name, "title": case.name, "case": variant, "missing": False,
-                    "rows": [checks[(case.name, s.observable)] for s in variant.compare if (case.name, s.observable) in checks],
+                    "rows": [r for s in variant.compare for r in checks.get((case.name, s.observable), [])],
                     "gates": gates.get(case.name, []), "figures": figs,
                     "events": [(e, ev) for e, r in runs.items() for ev in r.events if ev.kind != "segment"],
                     "stats": {e: {"wall_s": r.solver.get("wall_s"), "steps": r.solver.get("steps"),

@@ -134,11 +134,14 @@ def comparison_figure(title: str, unit: str, runs: dict[str, EngineRun], name: s
                       events: Sequence[tuple[float, str, str]] = (), time_offset: float = 0.0,
                       bands: Sequence[tuple[str, float, float]] = (), labels: Sequence[str] | None = None,
                       window: tuple[float, float] | None = None,
-                      compared: Sequence[float] | None = None) -> dict:
+                      compared: Sequence[float] | None = None,
+                      tolerances: dict[str, float] | None = None) -> dict:
     """An observable of every engine overlaid (top; each engine in its plug-in's line
-    style) and, below, |first − second engine| (the largest component; the first is the
-    model under test) on a log scale with the tolerance of the check, drawn over the
-    interval the check compares (`compared` [s], None: the whole run); events marked."""
+    style) and, below, |first − other engine| for each other engine (the largest component;
+    the first is the model under test, each curve in the other's line style) on a log scale
+    with that pair's tolerance (`tolerances`, other engine → tolerance; `tolerance` where
+    it names none), drawn over the interval the check compares (`compared` [s], None: the
+    whole run); events marked."""
     data: list[dict] = []
     order = list(runs)
     both = len(order) >= 2
@@ -157,18 +160,22 @@ def comparison_figure(title: str, unit: str, runs: dict[str, EngineRun], name: s
     layout["yaxis"].update(title={"text": unit}, domain=[0.38, 1.0] if both else [0, 1])
     if both:
         t = np.asarray(runs[order[0]].observables["time"], float) + time_offset
-        a, b = components(runs[order[1]].observables[name]), components(runs[order[0]].observables[name])
-        if a.shape == b.shape:
+        b = components(runs[order[0]].observables[name])
+        span = ([float(t[0]), float(t[-1])] if compared is None
+                else [float(compared[0]) + time_offset, float(compared[1]) + time_offset])
+        for other in order[1:]:
+            a = components(runs[other].observables[name])
+            if a.shape != b.shape:
+                continue
             err = np.max(np.abs(a - b), axis=1)
             floor = max(float(np.max(err[np.isfinite(err)], initial=0.0)) * 1e-8, 1e-300)
-            data.append(line(t, np.maximum(err, floor), f"|{order[0]} − {order[1]}|", "#444", yaxis="y2",
-                             group="error"))
-            if tolerance is not None:
-                span = ([float(t[0]), float(t[-1])] if compared is None
-                        else [float(compared[0]) + time_offset, float(compared[1]) + time_offset])
-                data.append({"type": "scatter", "mode": "lines", "name": f"tolerance ({metric})",
-                             "x": span, "y": [tolerance, tolerance], "yaxis": "y2",
-                             "line": {"color": "#b00", "dash": "dash", "width": 1.2}, "legendgroup": "error"})
+            pair = f"|{order[0]} − {other}|"
+            data.append(line(t, np.maximum(err, floor), pair, "#444", dash(other), yaxis="y2", group=pair))
+            tol = (tolerances or {}).get(other, tolerance)
+            if tol is not None:
+                data.append({"type": "scatter", "mode": "lines", "name": f"tolerance of {pair} ({metric})",
+                             "x": span, "y": [tol, tol], "yaxis": "y2",
+                             "line": {"color": "#b00", "dash": dash(other), "width": 1.2}, "legendgroup": pair})
         layout["yaxis2"] = {"type": "log", "domain": [0, 0.28], "title": {"text": "error"}, "anchor": "x",
                             "gridcolor": "#eee", "exponentformat": "power"}
         layout["xaxis"]["anchor"] = "y2"

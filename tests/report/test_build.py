@@ -260,3 +260,35 @@ def test_the_page_draws_the_engines_asked_for_only(rendered, tmp_path):
     doc = only_engines(rendered.verdict, ["reference"])
     assert doc["checks"] == [] and all(g["engine"] == "reference" for g in doc["gate"])
     assert only_engines(rendered.verdict, ["reference", "exudyn"])["checks"] == rendered.verdict["checks"]
+
+
+def test_three_engines_rows_of_one_pair_do_not_hide_another_pairs(rendered):
+    """A third engine (Exudyn's run under another name, with its own rows and errors): each
+    case keeps the rows of both pairs, each plot draws one difference curve per pair with
+    that pair's tolerance, and the verdict table names each row's pair."""
+    import rsmcheck.report.build as build
+    from rsmcheck.core.cases import load_case
+
+    runs = dict(rendered.runs["p1_rigid_gains"])
+    runs["exudyn2"] = runs["exudyn"]
+    pair = [r for r in rendered.verdict["checks"] if r["case"] == "p1_rigid_gains"]
+    assert pair and all(r["engines"] == ["reference", "exudyn"] for r in pair)
+    third = [dict(r, engines=["reference", "exudyn2"], error=2 * r["error"], tolerance=3 * r["tolerance"]) for r in pair]
+    st = build.Stored(rendered.folder, {"checks": pair + third}, [load_case("p1_rigid_gains")], {"p1_rigid_gains": runs})
+    page = build.Page()
+    section, = build.case_sections(page, st, build._check_map(pair + third), {})
+    assert len(section["rows"]) == 2 * len(pair)
+    for spec in load_case("p1_rigid_gains").variant(True).compare:
+        mine = [r for r in section["rows"] if r["observable"] == spec.observable]
+        assert sorted(tuple(r["engines"]) for r in mine) == [("reference", "exudyn"), ("reference", "exudyn2")]
+    fig = page.figures[0]
+    names = [t["name"] for t in fig["data"]]
+    assert "|reference − exudyn|" in names and "|reference − exudyn2|" in names
+    tols = {t["name"]: t["y"][0] for t in fig["data"] if t["name"].startswith("tolerance of")}
+    first = pair[0]
+    assert tols[f"tolerance of |reference − exudyn| ({first['metric']})"] == first["tolerance"]
+    assert tols[f"tolerance of |reference − exudyn2| ({first['metric']})"] == 3 * first["tolerance"]
+    assert "reference vs exudyn: error" in fig["layout"]["title"]["text"]
+    assert "reference vs exudyn2: error" in fig["layout"]["title"]["text"]
+    rows = build.verdict_rows({"checks": pair + third})
+    assert {r.pair for r in rows} == {"reference vs exudyn", "reference vs exudyn2"}
