@@ -176,15 +176,19 @@ def _rigid_rows(checker: str, checks: list[dict]) -> list[VerdictRow]:
 
 
 def verdict_summary(rows: list[VerdictRow]) -> list[dict]:
-    """Per kind of check: how many, how many fail, and the smallest margin (where)."""
+    """Per kind of check, and per pair of engines within a kind that compares engines: how
+    many, how many fail, and the smallest margin (where)."""
     out = []
     for kind in ("cross-check", "mission phase", "gate", "Pinocchio"):
         mine = [r for r in rows if r.kind == kind]
-        if not mine:
-            out.append({"kind": kind, "n": 0, "failed": 0, "worst": None})
-            continue
-        worst = min(mine, key=lambda r: (r.passed, r.margin))
-        out.append({"kind": kind, "n": len(mine), "failed": sum(not r.passed for r in mine), "worst": worst})
+        pairs = list(dict.fromkeys(r.pair for r in mine if r.pair))
+        groups = [(f"{kind}, {p}", [r for r in mine if r.pair == p]) for p in pairs] if len(pairs) > 1 else [(kind, mine)]
+        for label, group in groups:
+            if not group:
+                out.append({"kind": label, "n": 0, "failed": 0, "worst": None})
+                continue
+            worst = min(group, key=lambda r: (r.passed, r.margin))
+            out.append({"kind": label, "n": len(group), "failed": sum(not r.passed for r in group), "worst": worst})
     return out
 
 

@@ -292,3 +292,5 @@ def test_three_engines_rows_of_one_pair_do_not_hide_another_pairs(rendered):
     assert "reference vs exudyn2: error" in fig["layout"]["title"]["text"]
     rows = build.verdict_rows({"checks": pair + third})
     assert {r.pair for r in rows} == {"reference vs exudyn", "reference vs exudyn2"}
+    summary = {s["kind"]: s["n"] for s in build.verdict_summary(rows)}
+    assert summary["cross-check, reference vs exudyn"] == summary["cross-check, reference vs exudyn2"] == len(pair)
