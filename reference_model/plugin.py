@@ -29,8 +29,13 @@ class ReferencePlugin:
     #: right-hand side, the rigid studies
     rigid_options = {"n_modes": 0, "static_modes": False}
     #: the model's tests against analytic references (conservation of energy and momentum,
-    #: the Baumgarte decay of eq. (12), Table 2's frequencies): the fault matrix runs them
-    analytic_tests = ("tests/reference_model/test_conservation.py", "tests/reference_model/test_link_modes.py")
+    #: the Baumgarte decay of eq. (12), Table 2's frequencies) and of the slaved shapes
+    #: against their definition (the explicit shapes' static equilibrium, the stop's law at
+    #: the slaved wrist): the fault matrix runs them
+    analytic_tests = ("tests/reference_model/test_conservation.py", "tests/reference_model/test_link_modes.py",
+                      "tests/reference_model/test_condense.py::"
+                      "test_condensed_shapes_are_the_explicit_shapes_static_equilibrium",
+                      "tests/reference_model/test_condense.py::test_stop_torque_is_the_stop_law_at_the_slaved_wrist")
     #: the engine's constructor options (`rsmcheck check --option reference:KEY=VALUE`)
     engine_options = ("n_modes", "rtol", "integrator", "h_max", "static_modes", "quiet_integrator")
 
