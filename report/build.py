@@ -304,7 +304,7 @@ def _tolerances(rows: list[dict]) -> dict[str, float]:
     return {r["engines"][1]: r["tolerance"] for r in rows if len(r.get("engines", ())) == 2}
 
 
-def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict]) -> list[dict]:
+def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], list[dict]]) -> list[dict]:
     """One section per phase of the chained mission."""
     out = []
     for case in st.cases:
@@ -335,7 +335,7 @@ def mission_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict]
     return out
 
 
-def case_sections(page: Page, st: Stored, checks: dict[tuple[str, str], dict], gates: dict) -> list[dict]:
+def case_sections(page: Page, st: Stored, checks: dict[tuple[str, str], list[dict]], gates: dict) -> list[dict]:
     """One section per stand-alone case: its checks, events, golden verdicts and plots."""
     out = []
     for case in st.cases:

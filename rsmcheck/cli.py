@@ -42,12 +42,12 @@ def _cmd_cases(args: argparse.Namespace) -> int:
     return 0
 
 
-def _engine_names(choice: str | None, option: str = "--engines") -> list[str]:
+def _engine_names(choice: str | None) -> list[str]:
     """The engines `--engines` names ("all", a comma-separated list, or None for the default
     engines), each with its libraries installed."""
     names = engine_names(choice)
     for n in names:
-        require(n, option)
+        require(n)
     return names
 
 
