@@ -153,6 +153,14 @@ class CompareSpec:
     #: the interval [s] the metric looks at: required by "growth" (the fit interval),
     #: optional for "max_abs" and "rms" (the samples t0 ≤ t ≤ t1 only), not with "final"
     window: tuple[float, float] | None = None
+    #: the row's error budget in parts (docs/cases.md §1, rsmcheck.orchestration.tolerances):
+    #: `allowance`, what the paper's physics lets two faithful engines differ by on this row
+    #: (the same for every pair); `errors`, engine → that engine's own integration error on
+    #: this run, measured by its refinement.  `tolerance` is the row's tolerance for the pair
+    #: `errors` names; any other pair's is scaled from its own parts.  None: a rule row (a
+    #: flag, a bound by definition) whose tolerance is the same for every pair.
+    allowance: float | None = None
+    errors: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -610,8 +618,13 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
             "why": lambda kk, x: _text(w, kk, x),
             "metric": lambda kk, x: _choice(w, kk, x, METRICS),
             "window": lambda kk, x: _window(w, kk, x),
+            "allowance": lambda kk, x: _number(w, kk, x, 0.0),
+            "errors": lambda kk, x: _errors(w, kk, x),
         })
         _require(w, k, c, ("tolerance", "why"))
+        if ("allowance" in c) != ("errors" in c):
+            given, other = ("allowance", "errors") if "allowance" in c else ("errors", "allowance")
+            raise InputError(w, f"{k}.{other}", f"missing (required with {given}: a budget has both parts)")
         metric = c.get("metric", "max_abs")
         if metric == "growth" and "window" not in c:
             raise InputError(w, f"{k}.window", "required with metric \"growth\" (the fit interval)")
@@ -619,6 +632,14 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
             raise InputError(w, f"{k}.window", "not with metric \"final\" (the last sample)")
         out.append(CompareSpec(observable=obs, **c))
     return tuple(out)
+
+
+def _errors(w: str, key: str, v: Any) -> dict[str, float]:
+    """{engine: integration error ≥ 0} of a row's budget: the two engines it was measured on."""
+    if not isinstance(v, Mapping) or len(v) != 2:
+        raise InputError(w, key, "must be a table of the two engines the budget was measured on, "
+                         "e.g. { reference = 7.0e-10, exudyn = 1.8e-09 }")
+    return {str(e): _number(w, f"{key}.{e}", x, 0.0) for e, x in v.items()}
 
 
 def _window(w: str, key: str, v: Any) -> tuple[float, float]:

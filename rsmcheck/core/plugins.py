@@ -61,9 +61,14 @@ REQUIRED = ("name", "label", "style", "simulates", "requires", "extra", "tables"
 #:                                       `finer`, what they refine: `rsmcheck fuzz` takes the
 #:                                       change to that run as the engine's own discretisation
 #:                                       uncertainty
+#:   departures(case) -> dict            observable → (δ, why): an allowance for the engine's own
+#:                                       listed departures from the paper's physics on `case`'s
+#:                                       rows (a soft constraint, say), in the observable's unit,
+#:                                       added to the tolerance of its pairs only
+#:                                       (rsmcheck.core.tolerances)
 #:   rigid_checks, aba_timing            a plug-in that checks (Pinocchio)
 CAPABILITIES = ("linear_plant", "coupled_frequencies", "link_frequencies", "rhs_timing", "refined_options",
-                "finer_options",
+                "finer_options", "departures",
                 "rigid_checks", "aba_timing")
 
 
@@ -406,6 +411,29 @@ def _options_of(name: str, case: Case, capability: str) -> dict[str, Any] | None
                          f"options {', '.join(unknown)} are not among its engine_options" if unknown
                          else "gives no option: a finer run must differ")
     return options
+
+
+def departure_allowances(name: str, case: Case) -> dict[str, tuple[float, str]]:
+    """Plug-in `name`'s allowances for its own departures on the rows of `case` (the variant
+    run): observable → (δ ≥ 0, why), from its optional `departures`; {} without one, or for
+    an engine not installed (its runs read from a file).  A malformed answer is an
+    InputError naming the plug-in."""
+    p = plugins().get(name)
+    get = getattr(p, "departures", None) if p is not None else None
+    if get is None:
+        return {}
+    out = {}
+    for obs, item in dict(get(case)).items():
+        try:
+            size, why = item
+            size = float(size)
+        except (TypeError, ValueError):
+            raise InputError(f"plug-in {name}", f"departures.{obs}", "must be (size, why)") from None
+        if not (size >= 0.0 and size < float("inf")) or not isinstance(why, str) or not why.strip():
+            raise InputError(f"plug-in {name}", f"departures.{obs}",
+                             f"needs a finite size >= 0 and a reason, got ({size!r}, {why!r})")
+        out[str(obs)] = (size, why)
+    return out
 
 
 def given_settings(settings: Mapping[str, EngineSettings]) -> dict[str, dict[str, Any]]:

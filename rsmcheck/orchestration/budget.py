@@ -58,7 +58,7 @@ from rsmcheck.core.observables import OBSERVABLES
 from rsmcheck.core.plugins import default_engines, plugin, refined_options, settings_of
 from rsmcheck.core.store import EngineRun, git_commit, json_number, machine, write_json
 from rsmcheck.orchestration import executor
-from rsmcheck.orchestration.compare import check_runs, engine_pairs, not_checked
+from rsmcheck.orchestration.compare import check_runs, engine_pairs, not_checked, unit_of
 from rsmcheck.orchestration.collect import phase_runs, phase_specs
 from rsmcheck.orchestration.runs import (Job, Outcome, SequenceRun, add_runs, expected_wall, reusable, run_engine,
                                          run_jobs, run_sequence, source_digest)
@@ -119,14 +119,6 @@ def round_up(x: float, digits: int = SUGGEST_DIGITS) -> float:
 def _g(x: float | None) -> str:
     """Two significant figures, both shown: 0.22, 0.010, 1.0e-07."""
     return "not measured" if x is None else f"{x:#.2g}"
-
-
-def _unit(observable: str, metric: str) -> str:
-    """The unit a row's figures are in, for its `why` ('' for a mixed one: "m, m, rad")."""
-    if metric == "growth":
-        return "/s"
-    unit = next((o.unit for o in OBSERVABLES if o.name == observable), "")
-    return "" if "," in unit or not unit else f" {unit}"
 
 
 @dataclass(frozen=True)
@@ -229,16 +221,20 @@ def budget_rows(variant: Case, runs: Mapping[str, EngineRun], refined: Mapping[s
     for e in engines:
         fine = refined.get(e)
         integration[e] = None if fine is None else check_runs(variant, runs[e], fine, chained, specs)
+    # each pair's tolerance takes the integration errors measured here for the engines a
+    # row does not record (rsmcheck.core.tolerances)
+    measured = {e: {r.observable: max(r.error - r.inherited, 0.0) for r in rows}
+                for e, rows in integration.items() if rows is not None}
     out = []
     for a, b in engine_pairs(list(engines)):
-        for i, row in enumerate(check_runs(variant, runs[a], runs[b], chained, specs)):
+        for i, row in enumerate(check_runs(variant, runs[a], runs[b], chained, specs, measured)):
             # chained: what each engine's step adds in the phase to the d0 between its run and its
             # refined run, as the model difference is d0 plus what the phase adds
             ie = {e: None if integration[e] is None else max(integration[e][i].error - integration[e][i].inherited,
                                                              0.0) for e in (a, b)}
             carried = {e: integration[e][i].inherited for e in (a, b) if integration[e] is not None and chained}
             out.append(Budget(variant.name, row.observable, row.metric_label, (a, b), row.tolerance, row.error,
-                              ie, row.why, _unit(row.observable, row.metric), row.inherited, carried))
+                              ie, row.why, unit_of(row.observable, row.metric), row.inherited, carried))
     return out
 
 
@@ -536,14 +532,18 @@ def suggestion_lines(cb: CaseBudget, suggest: Suggest = Suggest()) -> list[str]:
     return lines
 
 
-def suggestions(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, tuple[float, str]]:
-    """observable → (suggested tolerance, why) of the rows `--apply` may write: a case whose
-    runs all ran, one pair of engines, every part of the budget measured and not zero; none
-    of a sequence (its phase rows are written by hand, docs/cases.md §6)."""
+def suggestions(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, dict[str, Any]]:
+    """observable → the row's new values that `--apply` may write: tolerance, why and the
+    budget's parts (allowance: the model difference; errors: each engine's integration
+    error, rsmcheck.core.tolerances), of a case whose runs all ran, one pair of engines,
+    every part of the budget measured and not zero; none of a sequence (its phase rows are
+    written by hand, docs/cases.md §6)."""
     if cb.failures or len(cb.engines) != 2 or cb.case.phases:
         return {}
     refinements = cb.refinements()
-    return {r.observable: (tol, r.suggested_why(refinements, suggest.factor, suggest.source, cb.run_label))
+    return {r.observable: {"tolerance": tol, "allowance": r.model_difference,
+                           "errors": {e: v for e, v in r.integration_error.items()},
+                           "why": r.suggested_why(refinements, suggest.factor, suggest.source, cb.run_label)}
             for r in cb.rows
             if r.complete and (tol := r.suggested_tolerance(suggest.factor)) is not None}
 

@@ -1,8 +1,9 @@
 """Minimal text edits of a case file's [compare] rows (`rsmcheck budget --apply`).
 
-A row `[compare.OBS]` (or `[short.compare.OBS]`) gets a new `tolerance` and `why`: only the
-value of those two lines changes; the comments, the order, the other keys and every other
-line stay as they were.  The edit is refused (the file untouched, the reason returned)
+A row `[compare.OBS]` (or `[short.compare.OBS]`) gets a new `tolerance` and `why`, and its
+budget's parts `allowance` and `errors` (rsmcheck.core.tolerances): only the values of
+those lines change (a part the row lacks is added after its tolerance); the comments, the
+order, the other keys and every other line stay as they were.  The edit is refused (the file untouched, the reason returned)
 where it cannot be that small: no such table header, a `why` that is not a one-line basic
 string.  The new text must parse to the old file's data with exactly those values changed,
 and load as a case, before it replaces the file (atomically, `store.write_text`).
@@ -15,7 +16,7 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
+from typing import Any, Mapping
 
 from rsmcheck.core.cases import Case, load_case
 from rsmcheck.core.errors import InputError
@@ -23,11 +24,13 @@ from rsmcheck.core.store import write_text
 
 #: a table header `[a.b.c]` (not an array of tables), with an optional comment
 HEADER = re.compile(r"^\s*\[(?!\[)\s*([^\]]+?)\s*\]\s*(?:#.*)?$")
-#: `tolerance = NUMBER  # comment`
-TOLERANCE = re.compile(r"^(?P<head>\s*tolerance\s*=\s*)(?P<value>[^\s#]+)(?P<tail>\s*(?:#.*)?)$")
+#: `KEY = VALUE  # comment` of the keys an edit may write (a one-line value: a number, an
+#: inline table without '#', or the why, matched again by WHY)
+KEY = re.compile(r"^(?P<head>\s*(?P<key>tolerance|allowance|errors|why)\s*=\s*)(?P<value>\{[^}#]*\}|[^\s#]+)"
+                 r"(?P<tail>\s*(?:#.*)?)$")
+KEY_NAME = re.compile(r"^\s*(tolerance|allowance|errors|why)\s*=")
 #: `why = "one-line basic string"  # comment`
 WHY = re.compile(r'^(?P<head>\s*why\s*=\s*)(?P<value>"(?:[^"\\]|\\.)*")(?P<tail>\s*(?:#.*)?)$')
-WHY_KEY = re.compile(r"^\s*why\s*=")
 
 
 def compare_table(case: Case, short: bool) -> str | None:
@@ -60,9 +63,20 @@ class Edit:
     refused: dict[str, str] = field(default_factory=dict)
 
 
-def edit_text(text: str, table: str, rows: Mapping[str, tuple[float, str]]) -> tuple[str, list[str], dict[str, str]]:
-    """(`text` with each [table.OBS] of `rows` given its (tolerance, why), the observables
-    changed, observable → why it was refused)."""
+def toml_value(key: str, value: Any) -> str:
+    """A row's value as the file writes it: numbers to two significant figures, `errors` as
+    a one-line inline table, `why` as a one-line basic string."""
+    if key == "why":
+        return toml_string(value)
+    if key == "errors":
+        return "{ " + ", ".join(f"{e} = {toml_float(v)}" for e, v in value.items()) + " }"
+    return toml_float(value)
+
+
+def edit_text(text: str, table: str, rows: Mapping[str, Mapping[str, Any]]) -> tuple[str, list[str], dict[str, str]]:
+    """(`text` with each [table.OBS] of `rows` given its values (key → value: tolerance,
+    why, and the budget's allowance and errors), the observables changed, observable → why
+    it was refused).  A key the table lacks is added after its tolerance line."""
     lines = text.splitlines(keepends=True)
     current = None
     found: dict[str, dict[str, int]] = {}
@@ -74,16 +88,16 @@ def edit_text(text: str, table: str, rows: Mapping[str, tuple[float, str]]) -> t
         for obs in rows:
             if current == f"{table}.{obs}":
                 body = line.rstrip("\r\n")
-                if TOLERANCE.match(body):
-                    found.setdefault(obs, {})["tolerance"] = i
-                elif WHY.match(body):
-                    found.setdefault(obs, {})["why"] = i
-                elif WHY_KEY.match(body):
-                    found.setdefault(obs, {})["why_other"] = i
+                km = KEY_NAME.match(body)
+                if km:
+                    key = km.group(1)
+                    one_line = WHY.match(body) if key == "why" else KEY.match(body)
+                    found.setdefault(obs, {})[key if one_line else f"{key}_other"] = i
     changed, refused = [], {}
-    for obs, (tolerance, why) in rows.items():
+    inserts: dict[int, list[str]] = {}
+    for obs, values in rows.items():
         at = found.get(obs, {})
-        if "tolerance" not in at and "why" not in at and "why_other" not in at:
+        if not at:
             refused[obs] = f"no [{table}.{obs}] table with tolerance and why lines"
             continue
         if "why" not in at:
@@ -92,17 +106,27 @@ def edit_text(text: str, table: str, rows: Mapping[str, tuple[float, str]]) -> t
         if "tolerance" not in at:
             refused[obs] = f"[{table}.{obs}] has no one-line tolerance"
             continue
-        for key, value in (("tolerance", toml_float(tolerance)), ("why", toml_string(why))):
+        other = [k[:-6] for k in at if k.endswith("_other") and k[:-6] in values]
+        if other:
+            refused[obs] = f"[{table}.{obs}] {other[0]} is not on one line: edit it by hand"
+            continue
+        for key, value in values.items():
+            if key not in at:  # a new key: after the tolerance, with its indentation
+                indent = lines[at["tolerance"]][:len(lines[at["tolerance"]]) - len(lines[at["tolerance"]].lstrip())]
+                inserts.setdefault(at["tolerance"], []).append(f"{indent}{key} = {toml_value(key, value)}\n")
+                continue
             i = at[key]
-            ending = lines[i][len(lines[i].rstrip("\r\n")):]
-            m = (TOLERANCE if key == "tolerance" else WHY).match(lines[i].rstrip("\r\n"))
-            lines[i] = m.group("head") + value + m.group("tail") + ending
+            body = lines[i].rstrip("\r\n")
+            m = WHY.match(body) if key == "why" else KEY.match(body)
+            lines[i] = m.group("head") + toml_value(key, value) + m.group("tail") + lines[i][len(body):]
         changed.append(obs)
+    for i in sorted(inserts, reverse=True):
+        lines[i + 1:i + 1] = inserts[i]
     return "".join(lines), changed, refused
 
 
-def apply_rows(case: Case, short: bool, rows: Mapping[str, tuple[float, str]]) -> Edit:
-    """Give the rows of `case`'s variant (observable → (tolerance, why)) their new values
+def apply_rows(case: Case, short: bool, rows: Mapping[str, Mapping[str, Any]]) -> Edit:
+    """Give the rows of `case`'s variant (observable → key → value, `edit_text`) their new values
     in its file, when that can be done by `edit_text` and checks out (module doc)."""
     path = Path(case.path)
     edit = Edit(path)
@@ -120,7 +144,8 @@ def apply_rows(case: Case, short: bool, rows: Mapping[str, tuple[float, str]]) -
         row = expected
         for part in table.split("."):
             row = row[part]
-        row[obs]["tolerance"], row[obs]["why"] = float(toml_float(rows[obs][0])), rows[obs][1]
+        for key, value in rows[obs].items():
+            row[obs][key] = tomllib.loads(f"v = {toml_value(key, value)}")["v"]
     if tomllib.loads(new) != expected:
         raise InputError(str(path), table, "the edited file does not parse to the intended rows: not written")
     write_text(path, new)

@@ -7,6 +7,9 @@
 ``runs/mission.h5``  the mission, its phases chained (rsmcheck.orchestration.chain.run_mission), both engines
 ``pinocchio.json``   the rows of ``rsmcheck pinocchio --json`` (rigid modes 0 and 2)
 ``modes.json``       the rows of ``rsmcheck modes --json`` (link and coupled frequencies)
+``integration.json`` engine → observable → its integration error on each case, measured by its
+                     refined run, for the engines a case's rows do not record (a plug-in's:
+                     rsmcheck.core.tolerances), as ``rsmcheck check`` measures them
 ``verdict.json``     every check: the cross-check rows of each case (the same rows, computed by
                      the same function, as ``rsmcheck check --json``), the rows of each mission
                      phase, each engine's gate result, the Pinocchio rows; with provenance
@@ -37,7 +40,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from rsmcheck.core.cases import Case, list_cases, load_case, phase_cases
-from rsmcheck.orchestration.compare import case_rows, check_runs, engine_pairs
+from rsmcheck.orchestration.compare import (case_rows, check_runs, engine_pairs, integration_errors, refined_jobs,
+                                            refined_runs)
 from rsmcheck.core.plugins import (available, default_engines, given_settings, plugin, plugin_distributions,
                                    with_capability)
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
@@ -47,6 +51,7 @@ from rsmcheck.core.store import EngineRun, Event, Phase, git_commit, package_ver
 
 VERDICT = "verdict.json"
 MODES = "modes.json"
+INTEGRATION = "integration.json"
 MISSION = "mission"
 #: the folder of the run files, under the report's folder
 RUNS = "runs"
@@ -104,11 +109,28 @@ def collect(folder: Path, short: bool = True, engines: Sequence[str] | None = No
     jobs.append((MODES, modes_rows, ()))
     extra = [Job(name.removesuffix(".json"), fn, args) for name, fn, args in jobs
              if rerun or not _stored_current(folder / name, digest)]
+    # the refined runs of the engines whose errors the case files do not record, unless
+    # their measured errors are stored and current
+    stored = _measured(folder, digest, short)
+    singles = [c for c in cases if not c.phases and c.variant(short).has_initial]
+    refine = [j for j in refined_jobs(singles, short, engines) if j.key[1] not in stored.get(j.key[0], {})]
     got = get_runs(cases, engines, short, run_dir(folder), rerun=rerun, progress=progress, workers=workers,
-                   extra=extra)
+                   extra=[*extra, *refine])
     res.reused = got.reused
     res.failures = got.failures
+    fine, failed = refined_runs({j: got.extra[j] for j in refine})
+    for name, exc in failed.items():
+        res.failures[f"{name} refined"] = str(exc)
+    for case in singles:
+        for e, run in fine.get(case.name, {}).items():
+            if e in got.runs.get(case.name, {}):
+                stored.setdefault(case.name, {}).update(
+                    integration_errors(case.variant(short), got.runs[case.name], {e: run}))
+    if refine:
+        write_json(folder / INTEGRATION, {"source_digest": digest, "short": short, "cases": stored})
     for job, outcome in got.extra.items():
+        if job in refine:
+            continue
         if outcome.error is not None:
             res.failures[job.label] = outcome.error_text
         else:
@@ -116,6 +138,18 @@ def collect(folder: Path, short: bool = True, engines: Sequence[str] | None = No
     res.wall_s = time.monotonic() - t0
     write_json(folder / VERDICT, verdict(res, digest))
     return res
+
+
+def _measured(folder: Path, digest: str, short: bool) -> dict[str, dict[str, dict[str, float]]]:
+    """case → engine → observable → integration error, as `collect` stored them in
+    folder/integration.json ({} when absent or made from other code or another variant)."""
+    try:
+        doc = json.loads((Path(folder) / INTEGRATION).read_text())
+    except (OSError, json.JSONDecodeError):
+        return {}
+    if not isinstance(doc, dict) or doc.get("source_digest") != digest or doc.get("short") != short:
+        return {}
+    return {c: {e: dict(obs) for e, obs in per.items()} for c, per in dict(doc.get("cases", {})).items()}
 
 
 def _stored_current(path: Path, digest: str) -> bool:
@@ -163,11 +197,13 @@ def phase_runs(mission: Case, short: bool, run: EngineRun) -> list[tuple[Case, f
 
 
 def case_checks(case: Case, short: bool, runs: dict[str, EngineRun],
-                engines: Sequence[str] | None = None) -> list[dict[str, Any]]:
+                engines: Sequence[str] | None = None,
+                measured: dict[str, dict[str, float]] | None = None) -> list[dict[str, Any]]:
     """The rows of `rsmcheck check --json` for one case, from its stored runs: the same
     function (`compare.case_rows`) on the same runs (`runs.read_stored`), the first of
-    `engines` (default: the default engines) against each other."""
-    return [r.as_dict() for r in case_rows(case, short, runs, engines)]
+    `engines` (default: the default engines) against each other; `measured`: the engines'
+    integration errors stored by `collect`."""
+    return [r.as_dict() for r in case_rows(case, short, runs, engines, measured)]
 
 
 def phase_specs(mission: Case, short: bool, phase: Case) -> tuple:
@@ -234,6 +270,7 @@ def verdict(res: Collected, digest: str) -> dict[str, Any]:
     """Every check row from the runs stored in `res.folder` that are current (read by
     `rsmcheck.orchestration.runs.read_stored`, the reader `rsmcheck check --out` uses)."""
     checks, mission, gates = [], [], []
+    measured = _measured(res.folder, digest, res.short)
     for case in res.cases:
         runs, _ = read_stored(run_dir(res.folder) / f"{case.name}.h5", case, res.short, digest)
         if not runs:
@@ -241,7 +278,7 @@ def verdict(res: Collected, digest: str) -> dict[str, Any]:
         if case.phases:
             mission += mission_checks(case, res.short, runs, res.engines)
             continue
-        checks += case_checks(case, res.short, runs, res.engines)
+        checks += case_checks(case, res.short, runs, res.engines, measured.get(case.name))
         if res.short:
             gates += gate_rows(case, runs)
     rigid = {}

@@ -63,9 +63,10 @@ import numpy as np
 
 from rsmcheck.core.cases import METRICS  # noqa: F401  (the metrics a [compare] entry may ask for)
 from rsmcheck.core.errors import InputError
-from rsmcheck.core.observables import NAMES
-from rsmcheck.core.plugins import default_engines
-from rsmcheck.orchestration.runs import get_runs
+from rsmcheck.core.observables import NAMES, OBSERVABLES
+from rsmcheck.core.plugins import default_engines, departure_allowances, plugins, refined_options
+from rsmcheck.core.tolerances import PairTolerance, pair_tolerance
+from rsmcheck.orchestration.runs import Job, expected_wall, get_runs, run_engine
 from rsmcheck.core.store import EngineRun
 from rsmcheck.core.store import json_number as _finite  # JSON has no inf/NaN: inf → "inf", NaN → null
 
@@ -289,6 +290,8 @@ class Check(_Verdict):
     window: tuple[float, float] | None = None
     #: the engines compared (the model under test, the other)
     engines: tuple[str, ...] = ()
+    #: the row's tolerance for this pair and its parts (rsmcheck.core.tolerances)
+    budget: PairTolerance | None = None
 
     @property
     def metric_label(self) -> str:
@@ -313,6 +316,8 @@ class Check(_Verdict):
             out["inherited"] = _finite(self.inherited)
         if self.window is not None:
             out["window"] = list(self.window)
+        if self.budget is not None:
+            out["budget"] = self.budget.as_dict()
         return out
 
     def switch_note(self) -> str:
@@ -328,10 +333,31 @@ class Check(_Verdict):
         return "; ".join(notes)
 
 
+def unit_of(observable: str, metric: str) -> str:
+    """The unit a row's figures are in, with a leading space, for its `why` ('' for a mixed
+    one: "m, m, rad")."""
+    if metric == "growth":
+        return "/s"
+    unit = next((o.unit for o in OBSERVABLES if o.name == observable), "")
+    return "" if "," in unit or not unit else f" {unit}"
+
+
+def refinement_texts(engines: Sequence[str]) -> dict[str, str]:
+    """engine → what its plug-in's refinement refines ("rtol/10, h ≤ Δt/2"; '' unknown)."""
+    found = plugins()
+    return {e: str(getattr(found.get(e), "refinement", "") or "") for e in engines}
+
+
 def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = False,
-               specs: Sequence[Any] | None = None) -> list[Check]:
+               specs: Sequence[Any] | None = None,
+               measured: Mapping[str, Mapping[str, float]] | None = None) -> list[Check]:
     """Every entry of `case.compare` (a `rsmcheck.core.cases.Case`, the variant that was run), or
-    of `specs` in its place.
+    of `specs` in its place, each with its tolerance for the pair (`reference.engine`,
+    `other.engine`) (`rsmcheck.core.tolerances.pair_tolerance`): `measured`, engine →
+    observable → that engine's integration error measured now (`integration_errors`), for
+    the engines a row does not record; the engines' own departures from their plug-ins.
+    The why of a row whose tolerance the case file states is the file's; any other pair's
+    shows its parts.
 
     `chained`: the runs are a phase of a chained flight, each engine starting from its own
     end state of the previous phase, so the engines start the phase apart by
@@ -343,7 +369,14 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
     rows = []
     t = _same_times(case.name, reference, other)
     switches = switch_samples(t, reference, other)
+    pair = (reference.engine, other.engine)
+    departures = {e: departure_allowances(e, case) for e in pair}
+    refinements = refinement_texts(pair)
     for spec in (case.compare if specs is None else specs):
+        pt = pair_tolerance(spec, pair, {e: (measured or {}).get(e, {}).get(spec.observable) for e in pair},
+                            {e: departures[e][spec.observable] for e in pair if spec.observable in departures[e]},
+                            refinements)
+        why = spec.why if pt.stated else pt.why(unit_of(spec.observable, spec.metric))
         a, b = _pair(reference, other, spec.observable, t.size)
         sampled = spec.metric in ("max_abs", "rms")
         at_switch = switches if spec.observable in MULTIPLIERS and sampled else np.zeros(0, int)
@@ -364,9 +397,9 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
         at = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in at_switch)
         btw = tuple((float(t[i]), float(np.max(np.abs(a[i] - b[i])))) for i in between)
         d0 = float(np.max(np.abs(a[0] - b[0]))) if chained and sampled and t.size else 0.0
-        rows.append(Check(case.name, spec.observable, err, float(spec.tolerance) + d0, spec.metric, spec.why,
+        rows.append(Check(case.name, spec.observable, err, pt.tolerance + d0, spec.metric, why,
                           tw, c, float(np.max(np.abs(b))) if b.size else 0.0, rates, at, btw, skew, d0,
-                          spec.window))
+                          spec.window, pair, pt))
     return rows
 
 
@@ -376,18 +409,65 @@ def engine_pairs(engines: Sequence[str]) -> list[tuple[str, str]]:
     return [(engines[0], other) for other in engines[1:]]
 
 
-def case_rows(case, short: bool, runs: Mapping[str, EngineRun], engines: Sequence[str] | None = None) -> list[Check]:
+def needs_error(variant, engine: str) -> bool:
+    """Whether a budgeted row of `variant` does not record `engine`'s own integration error
+    (so that judging it needs its refined run)."""
+    return any(s.allowance is not None and engine not in s.errors for s in variant.compare)
+
+
+def integration_errors(variant, runs: Mapping[str, EngineRun],
+                       refined: Mapping[str, EngineRun | None]) -> dict[str, dict[str, float]]:
+    """engine → observable → d(run, refined run) by each row of `variant` (its own metric,
+    window and left-out samples): the integration error of each engine that has a refined run."""
+    return {e: {r.observable: r.error for r in check_runs(variant, runs[e], fine)}
+            for e, fine in refined.items() if fine is not None and e in runs}
+
+
+def case_rows(case, short: bool, runs: Mapping[str, EngineRun], engines: Sequence[str] | None = None,
+              measured: Mapping[str, Mapping[str, float]] | None = None) -> list[Check]:
     """The cross-check rows of one stand-alone case from its runs (engine → run): its
     [compare] table applied to each pair of `engines` (default: the default engines,
-    rsmcheck.core.plugins.default_engines) of the variant (`short`).  The one place both
-    `rsmcheck check` and the report's verdict (rsmcheck.orchestration.collect) compute them;
-    [] for a sequence, a case without a table or a missing engine."""
+    rsmcheck.core.plugins.default_engines) of the variant (`short`), each with the pair's
+    tolerance; `measured`: engine → observable → its integration error measured by its
+    refined run (`integration_errors`), where a row does not record it (`needs_error`).
+    The one place both `rsmcheck check` and the report's verdict
+    (rsmcheck.orchestration.collect) compute them; [] for a sequence, a case without a table
+    or a missing engine."""
     variant = case.variant(short)
     engines = list(engines or default_engines())
     if case.phases or not variant.compare or not set(engines) <= set(runs):
         return []
-    return [replace(r, engines=(a, b)) for a, b in engine_pairs(engines)
-            for r in check_runs(variant, runs[a], runs[b])]
+    return [r for a, b in engine_pairs(engines) for r in check_runs(variant, runs[a], runs[b], measured=measured)]
+
+
+def refined_runs(outcomes: Mapping[Job, Any]) -> tuple[dict[str, dict[str, EngineRun]], dict[str, BaseException]]:
+    """The outcomes of `refined_jobs`: (case → engine → refined run, case → the first error)."""
+    runs: dict[str, dict[str, EngineRun]] = {}
+    errors: dict[str, BaseException] = {}
+    for job, oc in outcomes.items():
+        if oc.error is not None:
+            errors.setdefault(job.key[0], oc.error)
+        else:
+            runs.setdefault(job.key[0], {})[job.key[1]] = oc.value
+    return runs, errors
+
+
+def refined_jobs(cases: Sequence[Any], short: bool, engines: Sequence[str],
+                 options: Mapping[str, Mapping[str, Any]] | None = None) -> list[Job]:
+    """The refined runs a check needs: of each engine whose error some budgeted row of a
+    case does not record, and whose plug-in declares `refined_options`; job key
+    (case, engine)."""
+    jobs = []
+    for case in cases:
+        variant = case.variant(short)
+        for e in engines:
+            opts = refined_options(e, variant) if needs_error(variant, e) else None
+            if opts is not None:
+                how = refinement_texts([e])[e] or ", ".join(f"{k}={v}" for k, v in opts.items())
+                jobs.append(Job(f"{case.name} / {e} refined ({how}): its own integration error", run_engine,
+                                (e, variant, {**dict((options or {}).get(e, {})), **opts}),
+                                2.0 * expected_wall(case, e), (case.name, e)))
+    return jobs
 
 
 def not_checked(case, short: bool) -> str:
@@ -434,19 +514,24 @@ def check_cases(cases: Sequence[Any], short: bool, options: Mapping[str, Mapping
     skipped = {c.name: not_checked(c, short) for c in cases}
     todo = [c for c in cases if not skipped[c.name]]
     engines = list(engines or default_engines())
+    extra = refined_jobs(todo, short, engines, options)
     got = get_runs(todo, engines, short, run_dir, rerun=rerun, options=options,
-                   progress=progress, workers=workers)
+                   progress=progress, workers=workers, extra=extra)
+    refined, refined_errors = refined_runs(got.extra)
     out = []
     for case in cases:
         if skipped[case.name]:
             out.append(CaseCheck(case.name, skipped=skipped[case.name]))
             continue
         errors = [x for (c, _), x in got.errors.items() if c == case.name]
+        if case.name in refined_errors:
+            errors.append(refined_errors[case.name])
         runs = got.runs[case.name]
         res = CaseCheck(case.name, runs=runs, duration=case.variant(short).duration,
                         error=errors[0] if errors else None)
         if res.error is None:
-            res.rows = case_rows(case, short, runs, engines)
+            measured = integration_errors(case.variant(short), runs, refined.get(case.name, {}))
+            res.rows = case_rows(case, short, runs, engines, measured)
             res.wall_s = {e: float(r.solver.get("wall_s", float("nan"))) for e, r in runs.items()}
             res.wall_s["total"] = sum(got.wall_s.get((case.name, e), 0.0) for e in runs)
         out.append(res)

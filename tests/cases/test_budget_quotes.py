@@ -1,7 +1,8 @@
 """A tolerance's `why` that states its budget ("Budget 4.1e-06 m on the short run: model
 difference …, reference integration …, exudyn integration …") quotes the row stored in
-docs/data/budget.json, each figure to the digits it quotes: a re-measured budget or an edited
-why cannot drift apart unnoticed."""
+docs/data/budget.json, each figure to the digits it quotes, and the row's parts (`allowance`,
+`errors`, by which every other pair of engines is judged) are those figures: a re-measured
+budget or an edited why cannot drift apart unnoticed."""
 
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ def _rows():
                 for spec in rows:
                     if spec.why.lower().startswith("budget"):
                         label = f"{name}:{spec.observable}:{'short' if short else 'full'}"
-                        out.append((label, spec.why, "short" if short else "full", name, spec.observable))
+                        out.append((label, spec, "short" if short else "full", name, spec.observable))
     return out
 
 
@@ -66,8 +67,9 @@ def test_rows_quote_budgets():
     assert len(ROWS) > 40
 
 
-@pytest.mark.parametrize("label, why, variant, name, observable", ROWS, ids=[r[0] for r in ROWS])
-def test_a_quoted_budget_is_the_stored_one(label, why, variant, name, observable):
+@pytest.mark.parametrize("label, spec, variant, name, observable", ROWS, ids=[r[0] for r in ROWS])
+def test_a_quoted_budget_is_the_stored_one(label, spec, variant, name, observable):
+    why = spec.why
     m = QUOTE.match(why)
     assert m, f"{label}: a why about a budget starts 'Budget X UNIT on the full|short run|chained flight " \
               f"(docs/data/budget.json': {why[:80]}"
@@ -83,3 +85,12 @@ def test_a_quoted_budget_is_the_stored_one(label, why, variant, name, observable
         q = re.search(rf"\b{figure} {NUMBER}", head)
         if q:
             assert _same(q.group(1), value(row)), f"{label}: why quotes {figure} {q.group(1)}, stored {value(row):.3g}"
+    # the parts other pairs are judged by (rsmcheck.core.tolerances): the same figures
+    if "/" not in name:
+        assert spec.allowance is not None, f"{label}: a budgeted row states its allowance and errors"
+        assert _same(f"{spec.allowance:.2g}", row["model_difference"]), \
+            f"{label}: allowance {spec.allowance:.2g}, stored model difference {row['model_difference']:.3g}"
+        assert spec.errors.keys() == row["integration_error"].keys(), f"{label}: errors of other engines than measured"
+        for e, v in spec.errors.items():
+            assert _same(f"{v:.2g}", row["integration_error"][e]), \
+                f"{label}: errors.{e} {v:.2g}, stored {row['integration_error'][e]:.3g}"

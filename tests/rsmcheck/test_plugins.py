@@ -216,3 +216,20 @@ def test_a_name_clash_stops_every_command_in_one_line(monkeypatch, fresh_registr
     assert main(["cases"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "registered by rsmcheck" in err and "pip uninstall clashref" in err
+
+
+def test_departures_are_read_from_the_plug_in_and_a_malformed_one_is_one_line(monkeypatch):
+    """`departures(case)`: observable → (size ≥ 0, why), an allowance for the engine's own
+    listed departures (rsmcheck.core.tolerances); none declared is {}; an engine not
+    installed is {} (runs read from a file); a size without a reason is an InputError."""
+    ref = reg.plugin("reference")
+    case = load_case("motor_step")
+    assert reg.departure_allowances("reference", case) == {}
+    assert reg.departure_allowances("not_installed", case) == {}
+    monkeypatch.setattr(type(ref), "departures", lambda self, c: {"motor_angles": (1e-6, "measured softness")},
+                        raising=False)
+    assert reg.departure_allowances("reference", case) == {"motor_angles": (1e-6, "measured softness")}
+    for bad in ({"motor_angles": 1e-6}, {"motor_angles": (-1.0, "x")}, {"motor_angles": (1e-6, "")}):
+        monkeypatch.setattr(type(ref), "departures", lambda self, c, bad=bad: bad, raising=False)
+        with pytest.raises(InputError, match="plug-in reference: departures.motor_angles"):
+            reg.departure_allowances("reference", case)

@@ -314,10 +314,14 @@ why"""
 '''
 
 
+def _row(tolerance, why, **parts):
+    return {"tolerance": tolerance, "why": why, **parts}
+
+
 def test_an_edit_changes_the_two_lines_of_the_row_and_nothing_else():
     new, changed, refused = case_edit.edit_text(CASE_TEXT, "short.compare", {
-        "ee1_pos_B": (1.8e-7, 'budget 5.9e-08 m: "quoted" \\ slash'), "ee2_pos_B": (1.0, "x"),
-        "com_pos_B": (1.0, "y")})
+        "ee1_pos_B": _row(1.8e-7, 'budget 5.9e-08 m: "quoted" \\ slash'), "ee2_pos_B": _row(1.0, "x"),
+        "com_pos_B": _row(1.0, "y")})
     assert changed == ["ee1_pos_B"]
     assert "not a one-line basic string" in refused["ee2_pos_B"] and "no [short.compare.com_pos_B] table" in refused["com_pos_B"]
     old_lines, new_lines = CASE_TEXT.splitlines(), new.splitlines()
@@ -329,15 +333,29 @@ def test_an_edit_changes_the_two_lines_of_the_row_and_nothing_else():
     row = tomllib.loads(new)["short"]["compare"]["ee1_pos_B"]
     assert row == {"metric": "max_abs", "tolerance": 1.8e-7, "why": 'budget 5.9e-08 m: "quoted" \\ slash'}
     assert tomllib.loads(new)["compare"] == tomllib.loads(CASE_TEXT)["compare"]  # the full row untouched
-    new, changed, _ = case_edit.edit_text(CASE_TEXT, "compare", {"ee1_pos_B": (3.0, "z")})
+    new, changed, _ = case_edit.edit_text(CASE_TEXT, "compare", {"ee1_pos_B": _row(3.0, "z")})
     assert changed == ["ee1_pos_B"] and "tolerance = 3.0   # the old one" in new.splitlines()
+
+
+def test_an_edit_adds_the_budgets_parts_after_the_tolerance_then_replaces_them():
+    parts = {"allowance": 2.04e-8, "errors": {"reference": 1.23e-10, "exudyn": 4.5e-9}}
+    new, changed, _ = case_edit.edit_text(CASE_TEXT, "compare", {"ee1_pos_B": _row(1e-7, "w", **parts)})
+    lines = new.splitlines()
+    at = lines.index("tolerance = 1e-07   # the old one")
+    assert changed == ["ee1_pos_B"] and lines[at + 1:at + 3] == [
+        "allowance = 2e-08", "errors = { reference = 1.2e-10, exudyn = 4.5e-09 }"]
+    assert tomllib.loads(new)["compare"]["ee1_pos_B"]["errors"] == {"reference": 1.2e-10, "exudyn": 4.5e-9}
+    again, _, _ = case_edit.edit_text(new, "compare", {"ee1_pos_B": _row(1e-7, "w", allowance=3e-8,
+                                                                         errors={"reference": 1e-9, "exudyn": 2e-9})})
+    assert len(again.splitlines()) == len(lines)  # replaced in place, not added twice
+    assert tomllib.loads(again)["compare"]["ee1_pos_B"]["allowance"] == 3e-8
 
 
 def test_a_short_variant_that_takes_the_full_rows_is_not_edited():
     assert case_edit.compare_table(load_case("thrust_burn"), True) is None  # no [short.compare]
     assert case_edit.compare_table(load_case("thrust_burn"), False) == "compare"
     assert case_edit.compare_table(load_case("p1_rigid_gains"), True) == "short.compare"
-    edit = case_edit.apply_rows(load_case("thrust_burn"), True, {"joint_angles": (2e-5, "x")})
+    edit = case_edit.apply_rows(load_case("thrust_burn"), True, {"joint_angles": _row(2e-5, "x")})
     assert edit.changed == [] and "apply a full budget" in edit.refused["joint_angles"]
 
 
@@ -358,13 +376,18 @@ def test_apply_writes_the_suggestions_into_the_case_file(fake_engines, tmp_path,
     stdout = capsys.readouterr().out
     assert "p1_copy.toml: set motor_torques, ee1_pos_B, ee2_pos_B" in stdout
     new = (cases / "p1_copy.toml").read_text(encoding="utf-8")
+    assert len(new.splitlines()) == len(text.splitlines())  # the rows had their parts: replaced
     differ = [(a, b) for a, b in zip(text.splitlines(), new.splitlines()) if a != b]
-    assert len(differ) == 6 and all(a.split("=")[0] == b.split("=")[0] for a, b in differ)
+    assert differ and all(a.split("=")[0] == b.split("=")[0] for a, b in differ)
+    assert {a.split("=")[0].strip() for a, _ in differ} <= {"tolerance", "allowance", "errors", "why"}
     rows = {r["observable"]: r for r in json.loads(out.read_text())["variants"]["short"]["p1_copy"]["rows"]}
     short = load_case(str(cases / "p1_copy.toml")).variant(True)
     for spec in short.compare:
-        assert spec.tolerance == rows[spec.observable]["suggested_tolerance"]
-        assert spec.why == rows[spec.observable]["suggested_why"] and str(out) in spec.why
+        r = rows[spec.observable]
+        assert spec.tolerance == r["suggested_tolerance"]
+        assert spec.why == r["suggested_why"] and str(out) in spec.why
+        assert spec.allowance == float(f"{r['model_difference']:.2g}")
+        assert spec.errors == {e: float(f"{v:.2g}") for e, v in r["integration_error"].items()}
     assert load_case(str(cases / "p1_copy.toml")).compare == load_case("p1_rigid_gains").compare  # full rows kept
 
 

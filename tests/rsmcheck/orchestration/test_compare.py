@@ -337,3 +337,28 @@ def test_check_runs_both_engines():
         assert math.isfinite(r.error) and r.reference_range > 0
         assert set(r.as_dict()) >= {"case", "observable", "error", "tolerance", "margin", "pass"}
     assert res.runs["reference"].observables["time"][-1] == pytest.approx(0.1)
+
+
+def test_each_pair_gets_its_own_tolerance_and_departures_only_their_engines(monkeypatch):
+    """check_runs judges (reference, X) by the row's parts (rsmcheck.core.tolerances):
+    Exudyn's recorded error never enters another pair, X's measured error does, and a
+    departure X's plug-in declares widens X's pairs only."""
+    from rsmcheck.orchestration import compare
+
+    spec = CompareSpec("momentum_I", 2e-6, "budget", allowance=5e-7, errors={"reference": 1e-7, "exudyn": 4e-7})
+    case = dataclasses.replace(load_case("release"), compare=(spec,))
+    k = 2e-6 / (5e-7 + 1e-7 + 4e-7)
+    runs = {e: make_run(e, momentum_I=np.full((5, 3), 2.0 + d)) for e, d in
+            (("reference", 0.0), ("exudyn", 1e-6), ("soft", 1.5e-6))}
+    monkeypatch.setattr(compare, "departure_allowances",
+                        lambda name, c: {"momentum_I": (1e-6, "a soft constraint")} if name == "soft" else {})
+    (stated,) = check_runs(case, runs["reference"], runs["exudyn"])
+    assert stated.tolerance == 2e-6 and stated.why == "budget" and stated.engines == ("reference", "exudyn")
+    (soft,) = check_runs(case, runs["reference"], runs["soft"], measured={"soft": {"momentum_I": 3e-7}})
+    assert soft.tolerance == pytest.approx(k * (5e-7 + 1e-7 + 3e-7 + 1e-6), rel=1e-12)
+    assert soft.engines == ("reference", "soft") and soft.budget.departures == (("soft", 1e-6, "a soft constraint"),)
+    assert soft.why.startswith("reference against soft:") and "soft departure 1.0e-06 (a soft constraint)" in soft.why
+    assert soft.as_dict()["budget"]["errors"]["soft"] == {"value": 3e-7, "source": "measured"}
+    # the in-tree pair is untouched by the plug-in's departure
+    (again,) = check_runs(case, runs["reference"], runs["exudyn"], measured={"soft": {"momentum_I": 3e-7}})
+    assert again.tolerance == 2e-6
