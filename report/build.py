@@ -412,8 +412,17 @@ def render(folder: Path, out: Path, case_names: Sequence[str] | None = None, dat
         studies=_studies(data_dir), bench=bench, bench_note=machines_note(bench),
         fuzz=fuzz, faults=faults, fault_list=fault_rows(faults) if faults else [], fault_matrix=fault_matrix(faults),
         figures_count=len(page.figures), figures_json=json.dumps(page.figures, separators=(",", ":"), allow_nan=False),
-        plotly_js=plotly.offline.get_plotlyjs(), short=st.short)
+        plotly_js=plotly.offline.get_plotlyjs(), short=st.short, engine_labels=_labels(st))
     return write_text(out, html_text)
+
+
+def _labels(st: Stored) -> list[str]:
+    """The labels (the registry's; the name of an engine not installed) of the engines whose
+    runs the page draws, in the order they were run, and of the rigid checkers."""
+    found = plugins()
+    drawn = list(dict.fromkeys(e for runs in st.runs.values() for e in runs))
+    drawn += [n for n in st.verdict.get("rigid", {}) if n not in drawn]
+    return [found[e].label if e in found else e for e in drawn]
 
 
 def machines_note(bench: list[tuple[Path, dict]]) -> str:

@@ -22,6 +22,7 @@ from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import CAPABILITIES, available, broken_plugins, engine_names, plugin, plugins, require
+from rsmcheck.core.derived import DerivedPlugin
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
 
@@ -59,7 +60,10 @@ def _cmd_engines(args: argparse.Namespace) -> int:
         state = "available" if available(name) else (
             f"NOT INSTALLED: pip install 'rsmcheck[{p.extra}]'" if p.extra else "NOT INSTALLED")
         tables = ", ".join(f"[{t}]" for t in p.tables) or "-"
-        print(f"{name:12s} {p.label:12s} {role:9s} tables {tables:12s} {type(p).__module__:26s} {state}")
+        origin = f"variant of {p.base.name}" if isinstance(p, DerivedPlugin) else type(p).__module__
+        print(f"{name:12s} {p.label:12s} {role:9s} tables {tables:12s} {origin:26s} {state}")
+        if isinstance(p, DerivedPlugin):
+            print(f"{'':12s} {p.base.name}'s code and case settings; differs: {p.differs}")
         if caps:
             print(f"{'':12s} offers {', '.join(caps)}")
     for name, b in broken_plugins().items():
@@ -164,6 +168,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
                 print(f"  {r.engines[0]} against {r.engines[1]}:")
             print(f"  {r.observable:20s} {r.metric_label:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
                   + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
+            if r.budget is not None and not r.budget.stated:
+                print(f"  {'':20s} tolerance = {r.budget.formula()}")
             if r.switch_note():
                 print(f"  {'':20s} {r.switch_note()}")
     rows = [r for res in results for r in res.rows]
@@ -176,7 +182,11 @@ def _cmd_check(args: argparse.Namespace) -> int:
                "options": options, "engines": engines, "short": bool(args.short)}
         print(dumps_json(doc))
     else:
+        pairs = list(dict.fromkeys(r.engines for r in rows))
+        per_pair = [f"{a} against {b}: {sum(r.passed for r in rows if r.engines == (a, b))} of "
+                    f"{sum(r.engines == (a, b) for r in rows)}" for a, b in pairs] if len(pairs) > 1 else []
         print(f"{len(rows) - len(failed)} of {len(rows)} comparisons pass"
+              + (f" ({'; '.join(per_pair)})" if per_pair else "")
               + (f"; {len(skipped)} case(s) not checked (no [compare] table)" if skipped else ""))
     if not rows:
         sys.stderr.write("rsmcheck: nothing was compared (no case has a [compare] table)\n")

@@ -3,7 +3,8 @@
 tests/plugins/twomode/ is a distribution of its own (`rsmcheck-twomode`, docs/plugins.md):
 the reference model at the paper's two eigenmodes per link without the static correction
 shapes (docs/physics.md §2.4), registered under the entry-point group ``rsmcheck.engines``
-as ``twomode``.  It is pip-installed once per session into a temporary folder, and the
+as ``twomode``, and two variants of the reference made with `rsmcheck.core.derived`:
+``sameref`` (unchanged) and ``stiffref`` (EI + 3 %).  It is pip-installed once per session into a temporary folder, and the
 command line runs in subprocesses with that folder on PYTHONPATH: the entry point is found
 from the dist-info folder there, and the registry of this process (every other test) stays
 as it was.  Through the command line only, as a user would: `rsmcheck engines`, `check`,
@@ -27,9 +28,12 @@ ROOT = Path(__file__).resolve().parents[2]
 SOURCE = Path(__file__).resolve().parent / "twomode"
 CASE = "flex_arm_step"
 ENGINES = ["reference", "twomode"]
+#: the check of (b): the in-tree engines, the plug-in and the distribution's two variants of
+#: the reference (rsmcheck_twomode/variants.py, made with rsmcheck.core.derived)
+ALL = ["reference", "exudyn", "twomode", "sameref", "stiffref"]
 #: the plug-in's line style in the report (rsmcheck_twomode/plugin.py, `style`)
 TWOMODE_DASH = "dashdot"
-TIMEOUT = 300
+TIMEOUT = 900
 
 
 @pytest.fixture(scope="session")
@@ -74,6 +78,11 @@ def test_engines_lists_the_plugin_only_where_it_is_installed(plugin_site, tmp_pa
     assert "two modes" in line  # its label
     assert "simulates" in line and "available" in line and "[twomode]" in line
     assert "rsmcheck_twomode.plugin" in line
+    lines = with_it.stdout.splitlines()
+    (stiff,) = [k for k, ln in enumerate(lines) if ln.split()[:1] == ["stiffref"]]
+    assert "variant of reference" in lines[stiff] and "refined_options" in "".join(lines[stiff + 1:stiff + 3])
+    assert "reference's code and case settings; differs: the links' bending stiffness EI 3 % higher" \
+        in lines[stiff + 1]
     without = rsmcheck("engines", site=None, cwd=tmp_path)
     assert without.returncode == 0, without.stderr
     assert "reference" in without.stdout
@@ -85,10 +94,10 @@ def test_engines_lists_the_plugin_only_where_it_is_installed(plugin_site, tmp_pa
 # ---------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def checked(plugin_site, tmp_path_factory):
-    """`rsmcheck check CASE --short --engines reference,twomode --json`, the runs stored
-    where the report of (d) finds them (its folder's runs/)."""
+    """`rsmcheck check CASE --short --engines reference,exudyn,twomode,sameref,stiffref
+    --json`, the runs stored where the report of (d) finds them (its folder's runs/)."""
     folder = tmp_path_factory.mktemp("report")
-    proc = rsmcheck("check", CASE, "--short", "--engines", ",".join(ENGINES), "--json",
+    proc = rsmcheck("check", CASE, "--short", "--engines", ",".join(ALL), "--json",
                     "--out", str(folder / "runs"), site=plugin_site, cwd=folder)
     return proc, folder
 
@@ -121,16 +130,16 @@ def test_check_compares_the_reference_with_the_plugin(checked):
     proc, folder = checked
     assert proc.returncode in (0, 1), proc.stderr
     doc = json.loads(proc.stdout)
-    assert doc["engines"] == ENGINES and doc["short"] is True
-    rows = doc["checks"]
-    assert rows and all(r["engines"] == ENGINES for r in rows)
-    assert proc.returncode == (1 if any(not r["pass"] for r in rows) else 0)
-    assert set(doc["runs"][0]["wall_s"]) >= set(ENGINES)
+    assert doc["engines"] == ALL and doc["short"] is True
+    rows = [r for r in doc["checks"] if r["engines"] == ENGINES]
+    assert rows and {tuple(r["engines"]) for r in doc["checks"]} == {("reference", e) for e in ALL[1:]}
+    assert proc.returncode == (1 if any(not r["pass"] for r in doc["checks"]) else 0)
+    assert set(doc["runs"][0]["wall_s"]) >= set(ALL)
 
     from rsmcheck.core.store import read_run
 
     runs, _ = read_run(folder / "runs" / f"{CASE}.h5")
-    assert set(runs) == set(ENGINES)
+    assert set(runs) == set(ALL)
     ref, two = runs["reference"], runs["twomode"]
     assert two.engine == "twomode"
     # what each engine was: the case's 4 eigenmodes with static shapes; the plug-in's 2, none
@@ -147,6 +156,56 @@ def test_check_compares_the_reference_with_the_plugin(checked):
     peak = float(np.max(np.abs(w_ref)))
     assert change > 10 * row["tolerance"], (change, row["tolerance"])
     assert change < peak / 3, (change, peak)
+    # twomode has no refinement: its error counts 0, and the row says so
+    assert row["budget"]["errors"]["twomode"]["source"] == "not measured"
+    assert "twomode integration not measured (no refined_options: taken as 0)" in row["why"]
+
+
+@pytest.mark.crosscheck
+def test_each_pair_is_judged_by_its_own_tolerance(checked):
+    """The pair model (rsmcheck.core.tolerances), on one check of five engines:
+
+    * the reference–Exudyn rows are exactly those of a check of the two alone (computed
+      here from the same stored runs, without the plug-ins): error, tolerance, why;
+    * sameref, the reference under another name, differs by exactly 0 on every row and
+      passes; its tolerance is the allowance plus the reference's recorded error plus its
+      own, measured now by its refinement (the reference's own refined_options);
+    * stiffref (EI + 3 %) fails the rows that see the links' stiffness, of its own pair
+      only; momentum_I, which the joint couples cannot change, passes.
+    """
+    from rsmcheck.core.cases import load_case
+    from rsmcheck.core.store import read_run
+    from rsmcheck.orchestration.compare import case_rows
+
+    proc, folder = checked
+    doc = json.loads(proc.stdout)
+    by_pair: dict[str, dict[str, dict]] = {}
+    for r in doc["checks"]:
+        by_pair.setdefault(r["engines"][1], {})[r["observable"]] = r
+
+    runs, _ = read_run(folder / "runs" / f"{CASE}.h5")
+    two = {r.observable: r.as_dict() for r in case_rows(load_case(CASE), True, runs, ["reference", "exudyn"])}
+    assert set(two) == set(by_pair["exudyn"])
+    for obs, r in by_pair["exudyn"].items():
+        assert r == two[obs], obs
+        assert r["pass"] and r["budget"]["stated"]
+
+    spec = {s.observable: s for s in load_case(CASE).variant(True).compare}
+    for obs, r in by_pair["sameref"].items():
+        assert r["error"] == 0.0 and r["pass"], obs
+        parts = r["budget"]
+        assert not parts["stated"] and parts["errors"]["sameref"]["source"] == "measured"
+        assert parts["errors"]["reference"] == {"value": spec[obs].errors["reference"], "source": "recorded"}
+        assert "exudyn" not in parts["errors"]  # never another engine's error
+        expected = parts["factor"] * (spec[obs].allowance + spec[obs].errors["reference"]
+                                      + parts["errors"]["sameref"]["value"])
+        assert r["tolerance"] == pytest.approx(expected, rel=1e-12)
+        assert r["why"].startswith("reference against sameref: budget")
+
+    stiff = by_pair["stiffref"]
+    assert not stiff["link_deflection"]["pass"] and stiff["link_deflection"]["margin"] < 0.1
+    assert stiff["momentum_I"]["pass"]
+    assert all(r["pass"] for pair in ("exudyn", "sameref") for r in by_pair[pair].values())
 
 
 # ---------------------------------------------------------------------------------------
@@ -193,8 +252,8 @@ def test_report_draws_the_plugin(plugin_site, checked):
     proc, folder = checked
     assert proc.returncode in (0, 1), proc.stderr
     page = folder / "report.html"
-    rep = rsmcheck("report", "--short", "--cases", CASE, "--engines", ",".join(ENGINES), "--out", str(page),
-                   site=plugin_site, cwd=folder)
+    rep = rsmcheck("report", "--short", "--cases", CASE, "--engines", "reference,exudyn,twomode",
+                   "--out", str(page), site=plugin_site, cwd=folder)
     assert rep.returncode == 0, rep.stdout + rep.stderr
     assert "stored runs reused" in rep.stderr  # the runs (b) stored: nothing simulated again
     match = re.search(r'<script id="figures" type="application/json">(.*?)</script>', page.read_text(), re.S)
@@ -210,6 +269,40 @@ def test_report_draws_the_plugin(plugin_site, checked):
     assert any(t.get("name") == "twomode" and t["line"]["dash"] == TWOMODE_DASH for t in traces)
     assert any(t.get("name") == "|reference − twomode|" for t in traces)
     assert len({t["name"] for t in ours}) >= 6  # link_deflection's six components, at least
+    # three engines, two pairs: each difference panel draws both pairs, each with its own
+    # tolerance line; the variants checked in (b) but not asked for are not drawn
+    assert any(t.get("name") == "|reference − exudyn|" for t in traces)
+    tolerances = {t["name"] for t in traces if str(t.get("name", "")).startswith("tolerance of ")}
+    assert any("exudyn" in n for n in tolerances) and any("twomode" in n for n in tolerances)
+    assert not any(str(t.get("name", "")).startswith(("sameref", "stiffref")) for t in traces)
+
+
+@pytest.mark.crosscheck
+def test_the_report_of_three_engines_shows_every_pairs_rows(plugin_site, checked, chromium):
+    """The page of reference, Exudyn and twomode, read by Chromium: the verdict table holds
+    each observable once per pair (no row of one pair hides the other's), each with its own
+    tolerance; the title names the engines by the registry's labels."""
+    proc, folder = checked
+    page = folder / "three.html"
+    rep = rsmcheck("report", "--short", "--cases", CASE, "--engines", "reference,exudyn,twomode",
+                   "--out", str(page), site=plugin_site, cwd=folder)
+    assert rep.returncode == 0, rep.stdout + rep.stderr
+    dom = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=60000",
+                          "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=TIMEOUT).stdout
+    assert re.search(r'<pre id="js-errors">\s*</pre>', dom), "a JavaScript error on the page"
+    title = re.search(r"<h1>(.*?)</h1>", dom, re.S).group(1)
+    assert "reference" in title and "Exudyn" in title and "two modes" in title, title
+    table = re.search(r'<table id="verdict-table">(.*?)</table>', dom, re.S).group(1)
+    cells = [re.findall(r"<td[^>]*>(.*?)</td>", row, re.S) for row in re.findall(r"<tr[^>]*>(.*?)</tr>", table, re.S)]
+    cross = [c for c in cells if c and c[0] == "cross-check"]
+    pairs = {}
+    for c in cross:
+        pairs.setdefault(c[2], {})[c[3]] = c[6]  # quantity → pair → tolerance
+    doc = {(r["observable"], " vs ".join(r["engines"])): r for r in json.loads(proc.stdout)["checks"]}
+    assert pairs and all(set(p) == {"reference vs exudyn", "reference vs twomode"} for p in pairs.values()), pairs
+    for obs, by_pair in pairs.items():
+        for pair, tol in by_pair.items():
+            assert float(tol) == pytest.approx(doc[(obs, pair)]["tolerance"], rel=0.01), (obs, pair, tol)
 
 
 # ---------------------------------------------------------------------------------------
