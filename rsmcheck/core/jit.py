@@ -5,8 +5,9 @@ cached right-hand side that calls or inlines a kernel of another module is not r
 when that module changes, and runs the old physics.  For a suite whose users change the
 model and rerun it, that is a wrong answer, not a slow one.  So the cache lives in a
 folder named after a digest of every source file of rsmcheck and of the engine plug-ins
-registered with it (entry-point group `rsmcheck.engines`): any change of any of them
-compiles afresh, an unchanged tree reuses its kernels.
+registered with it (entry-point group `rsmcheck.engines`) that use numba: any change of any
+of them compiles afresh, an unchanged tree reuses its kernels, and installing a plug-in
+without kernels of its own (one that drives an in-tree engine) compiles nothing again.
 
 `use_source_keyed_cache()` sets it, once, before the first kernel is decorated; every
 package with compiled kernels calls it in its `__init__` (only those import this module,
@@ -19,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import os
+import re
 from importlib import metadata
 from pathlib import Path
 
@@ -27,13 +29,25 @@ import numba
 _DONE = False
 
 
+#: a line that imports numba
+_IMPORTS_NUMBA = re.compile(rb"^\s*(?:import numba|from numba)\b", re.M)
+
+
+def _compiles(folder: Path) -> bool:
+    """Whether a package folder can hold a numba kernel: one of its .py files imports numba.
+    A kernel calls only compiled functions, so a package that never imports numba (a plug-in
+    that drives another package's engine) cannot make a cached kernel stale."""
+    return any(_IMPORTS_NUMBA.search(p.read_bytes()) for p in folder.rglob("*.py"))
+
+
 def _package_dirs() -> list[Path]:
-    """rsmcheck's folder and the folder of every registered engine plug-in's top package."""
+    """rsmcheck's folder and the folder of every registered engine plug-in's top package
+    that can hold kernels (`_compiles`)."""
     dirs = [Path(__file__).resolve().parents[1]]
     for ep in metadata.entry_points(group="rsmcheck.engines"):
         spec = importlib.util.find_spec(ep.value.split(":")[0].split(".")[0])
         if spec is not None and spec.submodule_search_locations:
-            dirs += [Path(p).resolve() for p in spec.submodule_search_locations]
+            dirs += [Path(p).resolve() for p in spec.submodule_search_locations if _compiles(Path(p))]
     return sorted(set(dirs))
 
 

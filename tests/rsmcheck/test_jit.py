@@ -34,3 +34,17 @@ def test_the_engines_compile_into_the_keyed_folder():
             "print(numba.config.CACHE_DIR == str(jit.cache_root() / jit.source_key()))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "True"
+
+
+def test_only_packages_that_import_numba_enter_the_key(tmp_path):
+    """A plug-in that drives another package's engine (no numba import of its own) holds no
+    kernel: installing it must not recompile every kernel; one that imports numba does."""
+    driver = tmp_path / "driver_only"
+    driver.mkdir()
+    (driver / "plugin.py").write_text('"""Drives the reference (numba-compiled) model."""\nrequires = ("numba",)\n')
+    kernels = tmp_path / "with_kernels"
+    kernels.mkdir()
+    (kernels / "k.py").write_text("import math\nfrom numba import njit\n")
+    assert not jit._compiles(driver) and jit._compiles(kernels)
+    for pkg in ("reference_model", "exudyn_model"):  # the in-tree engines hold kernels
+        assert jit._compiles(jit.Path(jit.__file__).resolve().parents[2] / pkg)
