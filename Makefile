@@ -22,7 +22,8 @@ $(STAMP): pyproject.toml $(PACKAGE_INITS)
 	touch $(STAMP)
 
 # pytest exit code 5 = no tests collected: make fails (as for any non-zero code) and says why.
-# Everything but the `study` tests (Exudyn at microsecond steps, tens of minutes: `make study`).
+# Everything but the `study` tests (Exudyn at microsecond steps, full-length events, two fuzz
+# scenarios end to end, the installed wheel compiling afresh: tens of minutes, `make study`).
 test: venv
 	@status=0; $(VPY) -m pytest -m "not study" $(PYTEST_ARGS) || status=$$?; \
 	if [ $$status -eq 5 ]; then echo "make test: FAILED: pytest collected no tests (exit 5)" >&2; \

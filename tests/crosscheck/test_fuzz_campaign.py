@@ -2,8 +2,10 @@
 torque step and a closed chain under sines, both in orbit), each run by both engines at
 the scenario's resolution and refined, judged by the criterion of fuzz_ranges.toml.
 
-The campaign of record (`make fuzz`, ≥ 100 scenarios) is not run here: it takes an hour
-on two cores (docs/fuzz.md)."""
+The campaign of record (`make fuzz`, ≥ 100 scenarios) takes an hour on two cores
+(docs/fuzz.md); these two scenarios (eight runs, about two minutes) run with the studies
+(`make study`), outside `make test`'s ten minutes.  The judge, the drawing and the document
+are tested without engines in tests/rsmcheck/orchestration/test_fuzz.py."""
 
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ import pytest
 
 from rsmcheck.orchestration.fuzz_scenarios import draw
 
-pytestmark = pytest.mark.crosscheck
+pytestmark = [pytest.mark.crosscheck, pytest.mark.study]
 
 #: the scenarios CI runs: 2.25 s of flight in all (fuzz_scenarios.draw)
 CI_SEED = 2094

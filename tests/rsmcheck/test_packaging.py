@@ -173,9 +173,11 @@ def test_the_installed_package_lists_its_cases_outside_the_checkout(installed, t
 
 
 @pytest.mark.slow
+@pytest.mark.study
 def test_the_installed_package_checks_a_case_outside_the_checkout(installed, tmp_path):
     """`rsmcheck check free_drift p1_rigid_gains --short` with the installed package only:
-    both engines run (the reference compiles afresh there: minutes); free_drift has no
+    both engines run (every kernel compiles afresh there, numba's cache being keyed to the
+    source files' paths: minutes, so with the studies, `make study`); free_drift has no
     [compare] table, so p1_rigid_gains' comparisons make the exit code, and they pass."""
     env = outside_env(installed)
     check = subprocess.run(installed_command(installed) + ["check", "free_drift", "p1_rigid_gains", "--short"],
