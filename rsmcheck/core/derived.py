@@ -81,6 +81,12 @@ class DerivedPlugin:
         return tuple(self.base.engine_options)
 
     @property
+    def source_module(self) -> str:
+        """The module whose code makes its runs differ from the base's (the source digest of
+        stored runs covers its package): that of `params`, else the base plug-in's."""
+        return getattr(self.params, "__module__", None) or type(self.base).__module__
+
+    @property
     def refinement(self) -> str:
         return str(getattr(self.base, "refinement", "") or "")
 

@@ -66,10 +66,12 @@ Progress = Callable[[str], None]
 
 def source_digest(root: Path | None = None) -> str:
     """sha256 over the names and contents of the .py files that runs are made by: those of
-    RUN_SOURCES and of every registered plug-in's package, found under `root` where given,
+    RUN_SOURCES and of every registered plug-in's package (a variant's: the package of its
+    `source_module`, rsmcheck.core.derived), found under `root` where given,
     else where they are imported from: a run made by other code is not reused."""
     h = hashlib.sha256()
-    packages = sorted({"rsmcheck", *(type(p).__module__.split(".")[0] for p in plugins().values())})
+    packages = sorted({"rsmcheck", *((getattr(p, "source_module", None) or type(p).__module__).split(".")[0]
+                                     for p in plugins().values())})
     for pkg in packages:
         folder = Path(root) / pkg if root is not None else _package_folder(pkg)
         for path in sorted(folder.rglob("*.py")):

@@ -71,3 +71,28 @@ def test_the_engine_carries_the_variants_name():
         derived(Base(), "base", "b", LineStyle("#000"))
     with pytest.raises(ValueError, match="say in `differs`"):
         derived(Base(), "x", "x", LineStyle("#000"), params=_stiffer)
+
+
+
+def test_the_stored_runs_digest_covers_the_variants_parameters(tmp_path, monkeypatch):
+    """Editing the function that changes a variant's parameters must make its stored runs
+    stale: the source digest covers the package `params` comes from."""
+    import importlib
+    import sys
+
+    from rsmcheck.orchestration import runs
+
+    pkg = tmp_path / "vpkg_params"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "stiff.py").write_text("def stiffer(p):\n    return p\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    stiff = importlib.import_module("vpkg_params.stiff")
+    v = derived(reg.plugin("reference"), "stiffref", "s", LineStyle("#000"), params=stiff.stiffer, differs="d")
+    assert v.source_module == "vpkg_params.stiff"
+    monkeypatch.setattr(runs, "plugins", lambda: {"reference": reg.plugin("reference"), "stiffref": v})
+    before = runs.source_digest()
+    (pkg / "stiff.py").write_text("def stiffer(p):\n    return p  # EI + 3 %\n")
+    assert runs.source_digest() != before
+    sys.modules.pop("vpkg_params.stiff", None)
+    sys.modules.pop("vpkg_params", None)
