@@ -98,17 +98,19 @@ def collect(folder: Path, short: bool = True, engines: Sequence[str] | None = No
     """Run what is missing or out of date, store it in `folder`, write the verdict.  The
     runs come from `rsmcheck.orchestration.runs.get_runs` (reused when current, else run
     and stored in folder/runs/), the Pinocchio and eigenfrequency tables ride in the same
-    pool."""
+    pool; a report restricted to `case_names` leaves those robot-wide tables out."""
     cases = [load_case(n) for n in case_names] if case_names else [load_case(p) for p in list_cases()]
     engines = list(engines or default_engines())
     folder = Path(folder)
     digest = source_digest()
     t0 = time.monotonic()
     res = Collected(folder, cases, short, engines)
+    # the robot-wide tables (rigid checks, eigenfrequencies: a minute and a half of the two
+    # engines' linearisations) come with the whole report, not with one restricted to cases
     jobs = [(f"{n}.json", rigid_rows, (n,)) for n in with_capability("rigid_checks") if available(n)]
     jobs.append((MODES, modes_rows, ()))
     extra = [Job(name.removesuffix(".json"), fn, args) for name, fn, args in jobs
-             if rerun or not _stored_current(folder / name, digest)]
+             if not case_names and (rerun or not _stored_current(folder / name, digest))]
     # the refined runs of the engines whose errors the case files do not record, unless
     # their measured errors are stored and current
     stored = _measured(folder, digest, short)

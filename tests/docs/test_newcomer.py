@@ -6,9 +6,9 @@ leaves the tree alone.  A copy of the whole of cases/ would not do: a case name 
 folders is an error, and cases/ is always read.  Step 6 (the generated row in docs/cases.md)
 concerns the shipped cases only and is tests/docs/test_doc_tables.py's.
 
-free_drift's short variant is 5 s of flight in both engines; the test takes a minute or two
-on two cores, most of it the bless (three runs per engine) and the report's Pinocchio and
-eigenfrequency tables.
+free_drift's short variant is 5 s of flight in both engines; the test takes about a minute
+on two cores, most of it the bless (three runs per engine and a code path); the report,
+restricted to the new case, leaves out the robot-wide tables (docs/commands.md).
 """
 
 from __future__ import annotations

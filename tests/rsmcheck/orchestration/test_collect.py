@@ -119,3 +119,25 @@ def test_the_flights_first_phase_is_the_stand_alone_run(run_pool):
     for name, values in alone.observables.items():
         assert np.array_equal(values, cut.observables[name]), name
     assert [(e.kind, e.detail) for e in alone.events] == [(e.kind, e.detail) for e in cut.events]
+
+
+def test_the_robot_wide_tables_come_with_the_whole_report_only(tmp_path, monkeypatch):
+    """`collect` queues the rigid checks and the eigenfrequencies (a minute and a half of
+    linearisations) for the whole report, not for one restricted to some cases; a plug-in
+    whose error a row does not record gets its refined run queued beside the runs."""
+    from rsmcheck.orchestration import collect as col
+    from rsmcheck.orchestration.runs import RunSet
+
+    queued = {}
+
+    def fake_get_runs(cases, engines, short, run_dir, **kw):
+        queued[tuple(c.name for c in cases)] = [j.label for j in kw.get("extra", ())]
+        return RunSet()
+
+    monkeypatch.setattr(col, "get_runs", fake_get_runs)
+    monkeypatch.setattr(col, "verdict", lambda res, digest: {})
+    col.collect(tmp_path / "some", True, ["reference", "exudyn"], ["free_drift"])
+    assert queued[("free_drift",)] == []
+    col.collect(tmp_path / "whole", True, ["reference", "exudyn"])
+    labels = next(v for k, v in queued.items() if len(k) > 1)
+    assert "modes" in labels and "pinocchio" in labels
