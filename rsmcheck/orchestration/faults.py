@@ -266,6 +266,7 @@ def main(argv=None) -> int:
     print(f"baseline: both engines unfaulted, cross-check and gate pass ({base_wall:.0f} s)", flush=True)
     results = [run_fault(f, tree, cases, lambda s: print(s, flush=True)) for f in faults]
     doc = {"cases": cases, "checks": list(CHECKS), "case_checks": list(CASE_CHECKS), "rigid_states": RIGID_STATES,
+           "crosscheck_pair": list(default_engines()),
            "commit": git_commit()[0], "wall_s": round(time.monotonic() - t0, 1),
            "baseline": {"wall_s": round(base_wall, 1), "runs_wall_s": base["runs_wall_s"]}, "faults": results}
     out = write_json(out_path, doc)
