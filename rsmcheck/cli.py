@@ -21,7 +21,8 @@ from rsmcheck.core.options import engines_option
 from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare, executor, fuzz, gate
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
-from rsmcheck.core.plugins import CAPABILITIES, available, broken_plugins, engine_names, plugin, plugins, require
+from rsmcheck.core.plugins import (CAPABILITIES, available, broken_plugins, default_engines, engine_names, plugin,
+                                   plugins, require)
 from rsmcheck.core.derived import DerivedPlugin
 from rsmcheck.driver.runner import terminal_progress
 from rsmcheck.core.store import dumps_json, output_dir, output_file
@@ -168,8 +169,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
                 print(f"  {r.engines[0]} against {r.engines[1]}:")
             print(f"  {r.observable:20s} {r.metric_label:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
                   + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
-            if r.budget is not None and not r.budget.stated:
-                print(f"  {'':20s} tolerance = {r.budget.formula()}")
+            if r.tolerance_parts is not None and not r.tolerance_parts.stated:
+                print(f"  {'':20s} tolerance = {r.tolerance_parts.formula()}")
             if r.switch_note():
                 print(f"  {'':20s} {r.switch_note()}")
     rows = [r for res in results for r in res.rows]
@@ -213,6 +214,9 @@ def _cmd_budget(args: argparse.Namespace) -> int:
         raise InputError("--engines", args.engines, "a budget compares two or more engines")
     if args.apply and len(engines) != 2:
         raise InputError("--apply", ",".join(engines), "writes the rows of one pair of engines: name two")
+    if args.apply and set(engines) != set(default_engines()):
+        raise InputError("--apply", ",".join(engines), "writes the pair the case files state, the default engines "
+                         f"({','.join(default_engines())}); another pair is judged by those rows' parts")
     run_dir = output_dir(args.runs, "--runs") if args.runs else None
     results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2,
                              run_dir=run_dir)

@@ -27,7 +27,7 @@ from rsmcheck.core.errors import InputError
 from rsmcheck.core.observables import NAMES as OBSERVABLE_NAMES  # what a [compare] table may name
 from rsmcheck.core.params import Params
 from rsmcheck.core.programme import Segment, check_programme, parse_segments
-from rsmcheck.core.plugins import owned_solver_keys, owned_tables, parse_engine_settings
+from rsmcheck.core.plugins import broken_plugins, owned_solver_keys, owned_tables, parse_engine_settings, plugins
 from rsmcheck.core.schema import arm as _arm, choice as _choice, flag as _flag, grasp as _grasp
 from rsmcheck.core.schema import number as _number, require as _require, table as _table
 from rsmcheck.core.schema import text as _text, vector as _vector
@@ -153,7 +153,7 @@ class CompareSpec:
     #: the interval [s] the metric looks at: required by "growth" (the fit interval),
     #: optional for "max_abs" and "rms" (the samples t0 ≤ t ≤ t1 only), not with "final"
     window: tuple[float, float] | None = None
-    #: the row's error budget in parts (docs/cases.md §1, rsmcheck.orchestration.tolerances):
+    #: the row's error budget in parts (docs/cases.md §1, rsmcheck.core.tolerances):
     #: `allowance`, what the paper's physics lets two faithful engines differ by on this row
     #: (the same for every pair); `errors`, engine → that engine's own integration error on
     #: this run, measured by its refinement.  `tolerance` is the row's tolerance for the pair
@@ -635,10 +635,15 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
 
 
 def _errors(w: str, key: str, v: Any) -> dict[str, float]:
-    """{engine: integration error ≥ 0} of a row's budget: the two engines it was measured on."""
+    """{engine: integration error ≥ 0} of a row's budget: the two registered engines it was
+    measured on (a misspelt name would silently change which pair the row states)."""
     if not isinstance(v, Mapping) or len(v) != 2:
         raise InputError(w, key, "must be a table of the two engines the budget was measured on, "
                          "e.g. { reference = 7.0e-10, exudyn = 1.8e-09 }")
+    known = set(plugins()) | set(broken_plugins())
+    for e in v:
+        if e not in known:
+            raise InputError(w, f"{key}.{e}", f"not a registered engine (registered: {', '.join(sorted(known))})")
     return {str(e): _number(w, f"{key}.{e}", x, 0.0) for e, x in v.items()}
 
 

@@ -61,7 +61,7 @@ class DerivedPlugin:
     tables: tuple[str, ...] = ()
     solver_keys: tuple[str, ...] = ()
     linear_plant = coupled_frequencies = link_frequencies = rhs_timing = None
-    rigid_checks = aba_timing = departures = None
+    rigid_checks = aba_timing = None
     analytic_tests: tuple[str, ...] = ()
 
     @property
@@ -79,6 +79,11 @@ class DerivedPlugin:
     @property
     def engine_options(self) -> tuple[str, ...]:
         return tuple(self.base.engine_options)
+
+    @property
+    def departures(self) -> Callable[[Any], Mapping[str, tuple[float, str]]] | None:
+        """The base's listed departures are the variant's too (the same model)."""
+        return getattr(self.base, "departures", None)
 
     @property
     def source_module(self) -> str:

@@ -29,8 +29,8 @@ import numba
 _DONE = False
 
 
-#: a line that imports numba
-_IMPORTS_NUMBA = re.compile(rb"^\s*(?:import numba|from numba)\b", re.M)
+#: a line that imports numba (alone or among others) or points numba's cache here
+_IMPORTS_NUMBA = re.compile(rb"^\s*(?:from numba\b|import\b[^#\n]*\bnumba\b)|\buse_source_keyed_cache\(", re.M)
 
 
 def _compiles(folder: Path) -> bool:

@@ -35,6 +35,7 @@ from importlib import metadata, resources
 from typing import Any, Callable, Mapping, Protocol, runtime_checkable
 
 from rsmcheck.core.errors import InputError
+from rsmcheck.core.observables import NAMES as OBSERVABLE_NAMES
 
 #: type names of the annotations: a case (rsmcheck.core.cases, which imports this module),
 #: an engine (rsmcheck.core.engine.Engine) and a start state (rsmcheck.driver.initial, a
@@ -422,8 +423,16 @@ def departure_allowances(name: str, case: Case) -> dict[str, tuple[float, str]]:
     get = getattr(p, "departures", None) if p is not None else None
     if get is None:
         return {}
+    try:
+        declared = get(case)
+    except Exception as exc:  # noqa: BLE001 — a plug-in's bug is one line naming it, not a traceback
+        raise InputError(f"plug-in {name}", "departures", f"raised {type(exc).__name__}: {exc}") from None
+    if not isinstance(declared, Mapping):
+        raise InputError(f"plug-in {name}", "departures", f"must return a mapping, got {type(declared).__name__}")
     out = {}
-    for obs, item in dict(get(case)).items():
+    for obs, item in declared.items():
+        if obs not in OBSERVABLE_NAMES or obs == "time":
+            raise InputError(f"plug-in {name}", f"departures.{obs}", "not an observable (docs/observables.md)")
         try:
             size, why = item
             size = float(size)

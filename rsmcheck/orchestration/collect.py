@@ -40,13 +40,12 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from rsmcheck.core.cases import Case, list_cases, load_case, phase_cases
-from rsmcheck.orchestration.compare import (case_rows, check_runs, engine_pairs, integration_errors, refined_jobs,
-                                            refined_runs)
+from rsmcheck.orchestration.compare import case_rows, check_runs, engine_pairs, integration_errors, refined_jobs
 from rsmcheck.core.plugins import (available, default_engines, given_settings, plugin, plugin_distributions,
                                    with_capability)
 from rsmcheck.orchestration.gate import compare_with_golden, golden_path, read_golden
 from rsmcheck.orchestration.modes import modes_report
-from rsmcheck.orchestration.runs import Job, get_runs, read_stored, source_digest
+from rsmcheck.orchestration.runs import Job, get_runs, read_stored, run_inputs_hash, source_digest
 from rsmcheck.core.store import EngineRun, Event, Phase, git_commit, package_versions, write_json
 
 VERDICT = "verdict.json"
@@ -112,22 +111,26 @@ def collect(folder: Path, short: bool = True, engines: Sequence[str] | None = No
     extra = [Job(name.removesuffix(".json"), fn, args) for name, fn, args in jobs
              if not case_names and (rerun or not _stored_current(folder / name, digest))]
     # the refined runs of the engines whose errors the case files do not record, unless
-    # their measured errors are stored and current
-    stored = _measured(folder, digest, short)
+    # their measured errors are stored for this code and these case files
     singles = [c for c in cases if not c.phases and c.variant(short).has_initial]
-    refine = [j for j in refined_jobs(singles, short, engines) if j.key[1] not in stored.get(j.key[0], {})]
+    stored = {} if rerun else _measured(folder, digest, short, singles)
+    refine = [j for j in refined_jobs(singles, short, engines)
+              if j.key[1] not in stored.get(j.key[0], {}).get("engines", {})]
     got = get_runs(cases, engines, short, run_dir(folder), rerun=rerun, progress=progress, workers=workers,
                    extra=[*extra, *refine])
     res.reused = got.reused
     res.failures = got.failures
-    fine, failed = refined_runs({j: got.extra[j] for j in refine})
-    for name, exc in failed.items():
-        res.failures[f"{name} refined"] = str(exc)
-    for case in singles:
-        for e, run in fine.get(case.name, {}).items():
-            if e in got.runs.get(case.name, {}):
-                stored.setdefault(case.name, {}).update(
-                    integration_errors(case.variant(short), got.runs[case.name], {e: run}))
+    for job in refine:
+        name, e = job.key
+        entry = stored.setdefault(name, {"inputs": run_inputs_hash(next(c for c in singles if c.name == name)),
+                                         "engines": {}, "failed": {}})
+        oc = got.extra[job]
+        if oc.error is not None:
+            res.failures[f"{name} / {e} refined"] = oc.error_text
+            entry["failed"][e] = f"its refined run failed: {oc.error_text}"
+        elif e in got.runs.get(name, {}):
+            case = next(c for c in singles if c.name == name)
+            entry["engines"].update(integration_errors(case.variant(short), got.runs[name], {e: oc.value}))
     if refine:
         write_json(folder / INTEGRATION, {"source_digest": digest, "short": short, "cases": stored})
     for job, outcome in got.extra.items():
@@ -142,16 +145,20 @@ def collect(folder: Path, short: bool = True, engines: Sequence[str] | None = No
     return res
 
 
-def _measured(folder: Path, digest: str, short: bool) -> dict[str, dict[str, dict[str, float]]]:
-    """case → engine → observable → integration error, as `collect` stored them in
-    folder/integration.json ({} when absent or made from other code or another variant)."""
+def _measured(folder: Path, digest: str, short: bool, cases: Sequence[Case]) -> dict[str, dict[str, Any]]:
+    """case → {"inputs": its run_inputs_hash, "engines": engine → observable → integration
+    error, "failed": engine → why not measured}, as `collect` stored them in
+    folder/integration.json: only for this code, this variant and cases whose run inputs
+    are unchanged ({} where there is none)."""
     try:
         doc = json.loads((Path(folder) / INTEGRATION).read_text())
     except (OSError, json.JSONDecodeError):
         return {}
     if not isinstance(doc, dict) or doc.get("source_digest") != digest or doc.get("short") != short:
         return {}
-    return {c: {e: dict(obs) for e, obs in per.items()} for c, per in dict(doc.get("cases", {})).items()}
+    current = {c.name: run_inputs_hash(c) for c in cases}
+    return {name: entry for name, entry in dict(doc.get("cases", {})).items()
+            if isinstance(entry, dict) and entry.get("inputs") == current.get(name)}
 
 
 def _stored_current(path: Path, digest: str) -> bool:
@@ -199,13 +206,13 @@ def phase_runs(mission: Case, short: bool, run: EngineRun) -> list[tuple[Case, f
 
 
 def case_checks(case: Case, short: bool, runs: dict[str, EngineRun],
-                engines: Sequence[str] | None = None,
-                measured: dict[str, dict[str, float]] | None = None) -> list[dict[str, Any]]:
+                engines: Sequence[str] | None = None, measured: dict[str, dict[str, float]] | None = None,
+                missing: dict[str, str] | None = None) -> list[dict[str, Any]]:
     """The rows of `rsmcheck check --json` for one case, from its stored runs: the same
     function (`compare.case_rows`) on the same runs (`runs.read_stored`), the first of
     `engines` (default: the default engines) against each other; `measured`: the engines'
-    integration errors stored by `collect`."""
-    return [r.as_dict() for r in case_rows(case, short, runs, engines, measured)]
+    integration errors stored by `collect`, `missing`: why one was not measured."""
+    return [r.as_dict() for r in case_rows(case, short, runs, engines, measured, missing)]
 
 
 def phase_specs(mission: Case, short: bool, phase: Case) -> tuple:
@@ -272,7 +279,7 @@ def verdict(res: Collected, digest: str) -> dict[str, Any]:
     """Every check row from the runs stored in `res.folder` that are current (read by
     `rsmcheck.orchestration.runs.read_stored`, the reader `rsmcheck check --out` uses)."""
     checks, mission, gates = [], [], []
-    measured = _measured(res.folder, digest, res.short)
+    measured = _measured(res.folder, digest, res.short, [c for c in res.cases if not c.phases])
     for case in res.cases:
         runs, _ = read_stored(run_dir(res.folder) / f"{case.name}.h5", case, res.short, digest)
         if not runs:
@@ -280,12 +287,13 @@ def verdict(res: Collected, digest: str) -> dict[str, Any]:
         if case.phases:
             mission += mission_checks(case, res.short, runs, res.engines)
             continue
-        checks += case_checks(case, res.short, runs, res.engines, measured.get(case.name))
+        entry = measured.get(case.name, {})
+        checks += case_checks(case, res.short, runs, res.engines, entry.get("engines"), entry.get("failed"))
         if res.short:
             gates += gate_rows(case, runs)
     rigid = {}
     for n in with_capability("rigid_checks"):
         path = res.folder / f"{n}.json"
-        rigid[n] = json.loads(path.read_text())["checks"] if path.is_file() else []
+        rigid[n] = json.loads(path.read_text())["checks"] if _stored_current(path, digest) else []
     return {"checks": checks, "mission": mission, "gate": gates, "rigid": rigid,
             "provenance": provenance(res, digest)}

@@ -291,7 +291,7 @@ class Check(_Verdict):
     #: the engines compared (the model under test, the other)
     engines: tuple[str, ...] = ()
     #: the row's tolerance for this pair and its parts (rsmcheck.core.tolerances)
-    budget: PairTolerance | None = None
+    tolerance_parts: PairTolerance | None = None
 
     @property
     def metric_label(self) -> str:
@@ -316,8 +316,8 @@ class Check(_Verdict):
             out["inherited"] = _finite(self.inherited)
         if self.window is not None:
             out["window"] = list(self.window)
-        if self.budget is not None:
-            out["budget"] = self.budget.as_dict()
+        if self.tolerance_parts is not None:
+            out["tolerance_parts"] = self.tolerance_parts.as_dict()
         return out
 
     def switch_note(self) -> str:
@@ -350,14 +350,15 @@ def refinement_texts(engines: Sequence[str]) -> dict[str, str]:
 
 def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = False,
                specs: Sequence[Any] | None = None,
-               measured: Mapping[str, Mapping[str, float]] | None = None) -> list[Check]:
+               measured: Mapping[str, Mapping[str, float]] | None = None,
+               missing: Mapping[str, str] | None = None) -> list[Check]:
     """Every entry of `case.compare` (a `rsmcheck.core.cases.Case`, the variant that was run), or
     of `specs` in its place, each with its tolerance for the pair (`reference.engine`,
     `other.engine`) (`rsmcheck.core.tolerances.pair_tolerance`): `measured`, engine →
     observable → that engine's integration error measured now (`integration_errors`), for
-    the engines a row does not record; the engines' own departures from their plug-ins.
-    The why of a row whose tolerance the case file states is the file's; any other pair's
-    shows its parts.
+    the engines a row does not record (`missing`: engine → why its error was not
+    measured); the engines' own departures from their plug-ins.  The why of a row whose
+    tolerance the case file states is the file's; any other pair's shows its parts.
 
     `chained`: the runs are a phase of a chained flight, each engine starting from its own
     end state of the previous phase, so the engines start the phase apart by
@@ -375,7 +376,7 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
     for spec in (case.compare if specs is None else specs):
         pt = pair_tolerance(spec, pair, {e: (measured or {}).get(e, {}).get(spec.observable) for e in pair},
                             {e: departures[e][spec.observable] for e in pair if spec.observable in departures[e]},
-                            refinements)
+                            refinements, missing, chained)
         why = spec.why if pt.stated else pt.why(unit_of(spec.observable, spec.metric))
         a, b = _pair(reference, other, spec.observable, t.size)
         sampled = spec.metric in ("max_abs", "rms")
@@ -424,12 +425,14 @@ def integration_errors(variant, runs: Mapping[str, EngineRun],
 
 
 def case_rows(case, short: bool, runs: Mapping[str, EngineRun], engines: Sequence[str] | None = None,
-              measured: Mapping[str, Mapping[str, float]] | None = None) -> list[Check]:
+              measured: Mapping[str, Mapping[str, float]] | None = None,
+              missing: Mapping[str, str] | None = None) -> list[Check]:
     """The cross-check rows of one stand-alone case from its runs (engine → run): its
     [compare] table applied to each pair of `engines` (default: the default engines,
     rsmcheck.core.plugins.default_engines) of the variant (`short`), each with the pair's
     tolerance; `measured`: engine → observable → its integration error measured by its
-    refined run (`integration_errors`), where a row does not record it (`needs_error`).
+    refined run (`integration_errors`), where a row does not record it (`needs_error`);
+    `missing`: engine → why it was not measured.
     The one place both `rsmcheck check` and the report's verdict
     (rsmcheck.orchestration.collect) compute them; [] for a sequence, a case without a table
     or a missing engine."""
@@ -437,7 +440,8 @@ def case_rows(case, short: bool, runs: Mapping[str, EngineRun], engines: Sequenc
     engines = list(engines or default_engines())
     if case.phases or not variant.compare or not set(engines) <= set(runs):
         return []
-    return [r for a, b in engine_pairs(engines) for r in check_runs(variant, runs[a], runs[b], measured=measured)]
+    return [r for a, b in engine_pairs(engines)
+            for r in check_runs(variant, runs[a], runs[b], measured=measured, missing=missing)]
 
 
 def refined_runs(outcomes: Mapping[Job, Any]) -> tuple[dict[str, dict[str, EngineRun]], dict[str, BaseException]]:

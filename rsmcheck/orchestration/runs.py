@@ -74,7 +74,8 @@ def source_digest(root: Path | None = None) -> str:
                                      for p in plugins().values())})
     for pkg in packages:
         folder = Path(root) / pkg if root is not None else _package_folder(pkg)
-        for path in sorted(folder.rglob("*.py")):
+        files = sorted(folder.rglob("*.py")) if folder.is_dir() else [folder] if folder.is_file() else []
+        for path in files:
             name = f"{pkg}/{path.relative_to(folder).as_posix()}"
             if pkg == "rsmcheck" and not in_run_sources(name):
                 continue
@@ -112,8 +113,11 @@ def run_inputs_hash(case: Case) -> str:
 
 
 def _package_folder(package: str) -> Path:
+    """The folder of `package`, or the file of a module that is not a package."""
     spec = importlib.util.find_spec(package)
-    return Path(next(iter(spec.submodule_search_locations)))
+    if spec.submodule_search_locations:
+        return Path(next(iter(spec.submodule_search_locations)))
+    return Path(spec.origin)
 
 
 def goldens_dir() -> Path:

@@ -96,3 +96,10 @@ def test_the_stored_runs_digest_covers_the_variants_parameters(tmp_path, monkeyp
     assert runs.source_digest() != before
     sys.modules.pop("vpkg_params.stiff", None)
     sys.modules.pop("vpkg_params", None)
+
+
+def test_a_variant_takes_its_bases_departures(monkeypatch):
+    ref = reg.plugin("reference")
+    monkeypatch.setattr(type(ref), "departures", lambda self, c: {"energy": (1e-3, "x")}, raising=False)
+    v = derived(ref, "same", "same", LineStyle("#000"))
+    assert v.departures(load_case("free_drift")) == {"energy": (1e-3, "x")}

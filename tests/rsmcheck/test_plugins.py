@@ -229,7 +229,16 @@ def test_departures_are_read_from_the_plug_in_and_a_malformed_one_is_one_line(mo
     monkeypatch.setattr(type(ref), "departures", lambda self, c: {"motor_angles": (1e-6, "measured softness")},
                         raising=False)
     assert reg.departure_allowances("reference", case) == {"motor_angles": (1e-6, "measured softness")}
-    for bad in ({"motor_angles": 1e-6}, {"motor_angles": (-1.0, "x")}, {"motor_angles": (1e-6, "")}):
+    for bad in ({"motor_angles": 1e-6}, {"motor_angles": (-1.0, "x")}, {"motor_angles": (1e-6, "")},
+                {"motor_angle": (1e-6, "misspelt")}):
         monkeypatch.setattr(type(ref), "departures", lambda self, c, bad=bad: bad, raising=False)
-        with pytest.raises(InputError, match="plug-in reference: departures.motor_angles"):
+        with pytest.raises(InputError, match="plug-in reference: departures.motor_angle"):
+            reg.departure_allowances("reference", case)
+
+    def raises(self, c):
+        raise RuntimeError("no table")
+
+    for bad in (raises, lambda self, c: [("motor_angles", 1e-6)]):
+        monkeypatch.setattr(type(ref), "departures", bad, raising=False)
+        with pytest.raises(InputError, match="plug-in reference: departures: (raised RuntimeError|must return)"):
             reg.departure_allowances("reference", case)

@@ -86,3 +86,30 @@ def test_a_half_budget_is_one_error_naming_the_key(tmp_path, row, key, reason):
     with pytest.raises(InputError) as exc:
         load_case(str(path))
     assert f"compare.grasp_state.{key}" in str(exc.value) and reason in str(exc.value)
+
+
+def test_a_chained_phase_gives_every_pair_the_stated_tolerance_and_says_why():
+    pt = pair_tolerance(SPEC, ("reference", "mine"), measured={"mine": 5e-9}, chained=True)
+    assert pt.stated and pt.tolerance == 1.2e-7
+    assert "chained flight" in pt.why() and "chained flight" in pt.formula()
+
+
+def test_the_stated_pair_keeps_its_tolerance_whatever_its_engines_declare():
+    """The allowance was measured on the stated pair: its engines' departures are in it."""
+    pt = pair_tolerance(SPEC, ("reference", "exudyn"), departures={"exudyn": (1e-7, "axial compliance")})
+    assert pt.stated and pt.tolerance == 1.2e-7 and pt.departures == ()
+
+
+def test_a_row_says_why_an_error_was_not_measured():
+    pt = pair_tolerance(SPEC, ("reference", "mine"), missing={"mine": "its refined run failed: diverged at 0.3 s"})
+    assert "mine integration not measured (its refined run failed: diverged at 0.3 s: taken as 0)" in pt.why()
+    assert pt.as_dict()["errors"]["mine"]["how"].startswith("its refined run failed")
+
+
+def test_a_misspelt_engine_in_errors_is_one_error(tmp_path):
+    text = open(load_case("capture").path, encoding="utf-8").read().replace('name = "capture"', 'name = "capture_bad"')
+    text = text.replace("errors = { reference = 7e-10, exudyn = 1.8e-09 }", "errors = { reference = 7e-10, exudyn2 = 1.8e-09 }")
+    path = tmp_path / "capture_bad.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError, match="compare.capture_gap_B.errors.exudyn2: not a registered engine"):
+        load_case(str(path))

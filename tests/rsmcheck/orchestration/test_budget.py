@@ -464,3 +464,14 @@ def test_a_sequence_is_budgeted_by_its_phases_rows_in_the_chained_flight(fake_en
     assert "p2_capture_regrasp: ee1_pos_B" in stdout and "mission/p2_capture_regrasp ee1_pos_B" not in stdout
     assert "mission.toml: nothing set: a sequence's phase rows" in stdout
     assert open(mission.path, encoding="utf-8").read() == before
+
+
+def test_apply_writes_only_the_pair_the_case_files_state(monkeypatch, capsys):
+    """--apply with another pair would make its model difference (a deliberate change, say)
+    every pair's allowance: refused, one line, before anything runs."""
+    import rsmcheck.cli as cli
+
+    monkeypatch.setattr(cli, "default_engines", lambda: ("exudyn", "pinocchio"))
+    assert main(["budget", "p1_rigid_gains", "--short", "--engines", "reference,exudyn", "--apply"]) == 2
+    err = capsys.readouterr().err
+    assert "--apply" in err and "the default engines (exudyn,pinocchio)" in err and len(err.strip().splitlines()) == 1

@@ -141,3 +141,22 @@ def test_the_robot_wide_tables_come_with_the_whole_report_only(tmp_path, monkeyp
     col.collect(tmp_path / "whole", True, ["reference", "exudyn"])
     labels = next(v for k, v in queued.items() if len(k) > 1)
     assert "modes" in labels and "pinocchio" in labels
+
+
+def test_stored_integration_errors_count_only_for_unchanged_cases(tmp_path):
+    """integration.json is read for this code, this variant and cases whose run inputs
+    are unchanged: an edited case's errors are measured again."""
+    import json
+
+    from rsmcheck.orchestration import collect as col
+    from rsmcheck.orchestration.runs import run_inputs_hash
+
+    case = load_case("flex_arm_step")
+    entry = {"inputs": run_inputs_hash(case), "engines": {"mine": {"link_deflection": 1e-12}}, "failed": {}}
+    (tmp_path / col.INTEGRATION).write_text(json.dumps(
+        {"source_digest": "d", "short": True, "cases": {"flex_arm_step": entry,
+                                                         "motor_step": {**entry, "inputs": "an older file"}}}))
+    got = col._measured(tmp_path, "d", True, [case, load_case("motor_step")])
+    assert got == {"flex_arm_step": entry}
+    assert col._measured(tmp_path, "other code", True, [case]) == {}
+    assert col._measured(tmp_path, "d", False, [case]) == {}

@@ -356,9 +356,9 @@ def test_each_pair_gets_its_own_tolerance_and_departures_only_their_engines(monk
     assert stated.tolerance == 2e-6 and stated.why == "budget" and stated.engines == ("reference", "exudyn")
     (soft,) = check_runs(case, runs["reference"], runs["soft"], measured={"soft": {"momentum_I": 3e-7}})
     assert soft.tolerance == pytest.approx(k * (5e-7 + 1e-7 + 3e-7 + 1e-6), rel=1e-12)
-    assert soft.engines == ("reference", "soft") and soft.budget.departures == (("soft", 1e-6, "a soft constraint"),)
+    assert soft.engines == ("reference", "soft") and soft.tolerance_parts.departures == (("soft", 1e-6, "a soft constraint"),)
     assert soft.why.startswith("reference against soft:") and "soft departure 1.0e-06 (a soft constraint)" in soft.why
-    assert soft.as_dict()["budget"]["errors"]["soft"] == {"value": 3e-7, "source": "measured"}
+    assert soft.as_dict()["tolerance_parts"]["errors"]["soft"] == {"value": 3e-7, "source": "measured"}
     # the in-tree pair is untouched by the plug-in's departure
     (again,) = check_runs(case, runs["reference"], runs["exudyn"], measured={"soft": {"momentum_I": 3e-7}})
     assert again.tolerance == 2e-6
