@@ -253,10 +253,13 @@ def test_report_draws_the_plugin(plugin_site, checked):
     proc, folder = checked
     assert proc.returncode in (0, 1), proc.stderr
     page = folder / "report.html"
+    stored = folder / "runs" / f"{CASE}.h5"
+    before = stored.stat().st_mtime_ns
     rep = rsmcheck("report", "--short", "--cases", CASE, "--engines", "reference,exudyn,twomode",
                    "--out", str(page), site=plugin_site, cwd=folder)
     assert rep.returncode == 0, rep.stdout + rep.stderr
-    assert "stored runs reused" in rep.stderr  # the runs (b) stored: nothing simulated again
+    # the runs (b) stored are reused and no table is made for a restricted report: no job
+    assert "jobs" not in rep.stderr and stored.stat().st_mtime_ns == before, rep.stderr
     match = re.search(r'<script id="figures" type="application/json">(.*?)</script>', page.read_text(), re.S)
     assert match, "no figure data in the page"
     traces = [t for fig in json.loads(match.group(1)) for t in fig["data"]]
