@@ -12,23 +12,23 @@ from rsmcheck.core.errors import InputError
 from rsmcheck.core.tolerances import pair_tolerance
 
 #: capture_gap_B of capture.toml as budgeted: 3.5 × (3.2e-8 + 7.0e-10 + 1.8e-9)
-SPEC = CompareSpec("capture_gap_B", 1.2e-7, "budget", allowance=3.2e-8,
+ROW = CompareSpec("capture_gap_B", 1.2e-7, "budget", allowance=3.2e-8,
                    errors={"reference": 7.0e-10, "exudyn": 1.8e-9})
 K = 1.2e-7 / (3.2e-8 + 7.0e-10 + 1.8e-9)
 
 
 def test_the_stated_pair_gets_the_case_files_tolerance_in_either_order():
     for pair in (("reference", "exudyn"), ("exudyn", "reference")):
-        pt = pair_tolerance(SPEC, pair)
+        pt = pair_tolerance(ROW, pair)
         assert pt.stated and pt.tolerance == 1.2e-7
 
 
 def test_a_new_engine_is_judged_by_the_allowance_its_own_error_and_its_partners():
-    pt = pair_tolerance(SPEC, ("reference", "mine"), measured={"mine": 5e-9})
+    pt = pair_tolerance(ROW, ("reference", "mine"), measured={"mine": 5e-9})
     assert not pt.stated
     assert pt.tolerance == pytest.approx(K * (3.2e-8 + 7.0e-10 + 5e-9), rel=1e-12)
     # not Exudyn's error: the new pair's tolerance moves with its own engine's error only
-    assert pair_tolerance(SPEC, ("reference", "mine"), measured={"mine": 0.0}).tolerance == \
+    assert pair_tolerance(ROW, ("reference", "mine"), measured={"mine": 0.0}).tolerance == \
         pytest.approx(K * (3.2e-8 + 7.0e-10), rel=1e-12)
     why = pt.why(" m")
     assert why.startswith("reference against mine: budget")
@@ -37,19 +37,19 @@ def test_a_new_engine_is_judged_by_the_allowance_its_own_error_and_its_partners(
 
 
 def test_an_engine_without_refinement_counts_zero_and_says_so():
-    pt = pair_tolerance(SPEC, ("reference", "norefine"))
+    pt = pair_tolerance(ROW, ("reference", "norefine"))
     assert pt.tolerance == pytest.approx(K * (3.2e-8 + 7.0e-10), rel=1e-12)
     assert "norefine integration not measured (no refined_options: taken as 0)" in pt.why()
 
 
 def test_departures_widen_only_the_pairs_of_their_engine():
     dep = {"soft": (1e-7, "soft closed-chain constraint, gap 1e-7 m measured")}
-    mine = pair_tolerance(SPEC, ("reference", "soft"), measured={"soft": 0.0}, departures=dep)
+    mine = pair_tolerance(ROW, ("reference", "soft"), measured={"soft": 0.0}, departures=dep)
     assert mine.tolerance == pytest.approx(K * (3.2e-8 + 7.0e-10 + 1e-7), rel=1e-12)
     assert "soft departure 1.0e-07 (soft closed-chain" in mine.why()
     # the stated pair passes no departure of another engine: check_runs hands each pair
     # only its own engines' departures, and without them it is the case file's figure
-    assert pair_tolerance(SPEC, ("reference", "exudyn"), departures={}).tolerance == 1.2e-7
+    assert pair_tolerance(ROW, ("reference", "exudyn"), departures={}).tolerance == 1.2e-7
 
 
 def test_a_rule_row_is_the_same_for_every_pair():
@@ -89,19 +89,19 @@ def test_a_half_budget_is_one_error_naming_the_key(tmp_path, row, key, reason):
 
 
 def test_a_chained_phase_gives_every_pair_the_stated_tolerance_and_says_why():
-    pt = pair_tolerance(SPEC, ("reference", "mine"), measured={"mine": 5e-9}, chained=True)
+    pt = pair_tolerance(ROW, ("reference", "mine"), measured={"mine": 5e-9}, chained=True)
     assert pt.stated and pt.tolerance == 1.2e-7
     assert "chained flight" in pt.why() and "chained flight" in pt.formula()
 
 
 def test_the_stated_pair_keeps_its_tolerance_whatever_its_engines_declare():
     """The allowance was measured on the stated pair: its engines' departures are in it."""
-    pt = pair_tolerance(SPEC, ("reference", "exudyn"), departures={"exudyn": (1e-7, "axial compliance")})
+    pt = pair_tolerance(ROW, ("reference", "exudyn"), departures={"exudyn": (1e-7, "axial compliance")})
     assert pt.stated and pt.tolerance == 1.2e-7 and pt.departures == ()
 
 
 def test_a_row_says_why_an_error_was_not_measured():
-    pt = pair_tolerance(SPEC, ("reference", "mine"), missing={"mine": "its refined run failed: diverged at 0.3 s"})
+    pt = pair_tolerance(ROW, ("reference", "mine"), missing={"mine": "its refined run failed: diverged at 0.3 s"})
     assert "mine integration not measured (its refined run failed: diverged at 0.3 s: taken as 0)" in pt.why()
     assert pt.as_dict()["errors"]["mine"]["how"].startswith("its refined run failed")
 
