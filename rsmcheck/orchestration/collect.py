@@ -120,17 +120,16 @@ def collect(folder: Path, short: bool = True, engines: Sequence[str] | None = No
                    extra=[*extra, *refine])
     res.reused = got.reused
     res.failures = got.failures
+    by_name = {c.name: c for c in singles}
     for job in refine:
         name, e = job.key
-        entry = stored.setdefault(name, {"inputs": run_inputs_hash(next(c for c in singles if c.name == name)),
-                                         "engines": {}, "failed": {}})
+        entry = stored.setdefault(name, {"inputs": run_inputs_hash(by_name[name]), "engines": {}, "failed": {}})
         oc = got.extra[job]
         if oc.error is not None:
             res.failures[f"{name} / {e} refined"] = oc.error_text
             entry["failed"][e] = f"its refined run failed: {oc.error_text}"
         elif e in got.runs.get(name, {}):
-            case = next(c for c in singles if c.name == name)
-            entry["engines"].update(integration_errors(case.variant(short), got.runs[name], {e: oc.value}))
+            entry["engines"].update(integration_errors(by_name[name].variant(short), got.runs[name], {e: oc.value}))
     if refine:
         write_json(folder / INTEGRATION, {"source_digest": digest, "short": short, "cases": stored})
     for job, outcome in got.extra.items():
