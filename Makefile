@@ -43,11 +43,13 @@ faults: venv
 # (rsmcheck.orchestration.collect stores the runs in out/; a second `make report` re-renders in seconds
 # and re-runs only what the code or the case files changed).
 report: venv
+	$(VENV)/bin/rsmcheck compile
 	$(VENV)/bin/rsmcheck report --short --out out/report.html
 
 # The slow tier, not in CI: every case and the whole mission (p1 → p5, chained) at full
 # length in both engines, compared with the cases' tolerances (over an hour on 2 cores).
 fullcheck: venv
+	$(VENV)/bin/rsmcheck compile
 	$(VENV)/bin/rsmcheck report --out out/full/report.html
 
 # The randomized cross-check's campaign of record (docs/fuzz.md), not in CI: FUZZ_N scenarios

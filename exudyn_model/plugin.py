@@ -34,6 +34,10 @@ class ExudynPlugin:
                       "newton_atol", "jacobian_per_step", "jacobian_period", "field", "restart_on_input_change",
                       "stepping", "constraints", "axial_damping", "restart_threshold")
 
+    #: short runs that compile the kernels (rsmcheck.orchestration.kernels): the sensors and
+    #: observables of open and closed chains, the tidal field and the thrust
+    kernel_runs = ((("free_drift", {}), ("thrust_burn", {}), ("capture", {})),)
+
     def parse_settings(self, tables, solver, where, key):
         return settings.parse(tables, solver, where, key)
 

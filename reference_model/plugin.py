@@ -38,6 +38,14 @@ class ReferencePlugin:
                       "tests/reference_model/test_condense.py::test_stop_torque_is_the_stop_law_at_the_slaved_wrist")
     #: the engine's constructor options (`rsmcheck check --option reference:KEY=VALUE`)
     engine_options = ("n_modes", "rtol", "integrator", "h_max", "static_modes", "quiet_integrator")
+    #: short runs that compile the kernels (rsmcheck.orchestration.kernels), a group per
+    #: process: each integrator's loop inlines the whole right-hand side, so the explicit
+    #: pair (open and closed chains, slaved and explicit shapes, orbit and thrust, a motion
+    #: programme) and the two implicit integrators compile side by side
+    kernel_runs = ((("free_drift", {}), ("thrust_burn", {}), ("wrist_bistop", {}), ("capture", {}),
+                    ("p1_transport", {})),
+                   (("free_drift", {"integrator": "trbdf2"}),
+                    ("free_drift", {"integrator": "imex", "static_modes": "explicit"})))
 
     def parse_settings(self, tables, solver, where, key):
         return settings.parse(tables, solver, where, key)

@@ -18,7 +18,8 @@ from typing import Callable, Sequence
 from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.core.options import engines_option
-from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare, executor, fuzz, gate
+from rsmcheck.core import jit
+from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare, executor, fuzz, gate, kernels
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import (CAPABILITIES, available, broken_plugins, default_engines, engine_names, plugin,
@@ -283,6 +284,16 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compile(args: argparse.Namespace) -> int:
+    """`rsmcheck compile`: every engine's kernels into the cache, a group per worker."""
+    engines = _engine_names(args.engines or "all")
+    walls = kernels.compile_kernels([e for e in engines if plugin(e).simulates], args.workers, print,
+                                    again=args.again)
+    print(f"compiled: {len(walls)} groups of {', '.join(engines)} (cache {jit.cache_dir()}; an engine already"
+          " compiled for this code is skipped, --again runs its groups anyway)")
+    return 0
+
+
 def _plugin_command(args: argparse.Namespace) -> int:
     """A sub-command a plug-in brings (its `commands`), e.g. `rsmcheck pinocchio`."""
     for name, p in plugins().items():
@@ -427,6 +438,7 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "run": _cmd_run,
     "report": _cmd_report,
     "engines": _cmd_engines,
+    "compile": _cmd_compile,
     "fuzz": _cmd_fuzz,
 }
 
@@ -544,6 +556,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--serial", action="store_true", help="run one after the other in this process")
     sub.add_parser("bench", help="speed of each engine on the same work [--json] [--full]", add_help=False)
     sub.add_parser("engines", help="the registered engine plug-ins, what they offer, whether they are installed")
+    p = sub.add_parser("compile", help="compile the engines' kernels into the cache, before runs that need them")
+    engines_option(p, "ENGINE, A,B or all (default: all)")
+    p.add_argument("--workers", type=int, default=2, help="processes compiling side by side (default: 2)")
+    p.add_argument("--again", action="store_true", help="run the groups also of the engines compiled already")
     for p_name, text in _plugin_commands().items():
         p = sub.add_parser(p_name, help=text, add_help=False)
         p.add_argument("rest", nargs=argparse.REMAINDER)
@@ -565,7 +581,7 @@ DELEGATED = {"bench"}
 LISTINGS = {"cases", "modes"}
 
 #: commands whose runs go through rsmcheck.orchestration.runs.run_jobs (--scheduler)
-JOB_COMMANDS = {"check", "budget", "gate", "bless", "report", "fuzz"}
+JOB_COMMANDS = {"check", "budget", "gate", "bless", "report", "fuzz", "compile"}
 
 
 #: the global options that take a value, taken out of the arguments before the command is

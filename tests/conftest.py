@@ -13,7 +13,8 @@ a folder of the session and comes back as a `SequenceRun` (the run, the file's a
 the folder with its end states).  Jobs start longest first (the wall time each golden
 recorded, goldens/; a sequence: the sum of its phases'), so that no long run starts last
 while the other core has nothing left to do; the tests that read pool runs are collected
-last, so that the main process meanwhile runs everything else.
+last, so that the main process meanwhile runs everything else.  Before the pool starts,
+the engines' kernels are compiled once, on both cores (`_compile_kernels`).
 """
 
 from __future__ import annotations
@@ -143,9 +144,24 @@ def pytest_configure(config):
 POOL = pytest.StashKey[RunPool]()
 
 
+def _compile_kernels(session) -> None:
+    """Fill the kernel cache before the pool and this process start (rsmcheck.orchestration.
+    kernels): on a fresh tree both workers and this process would each compile the same
+    kernels; a tree whose cache is whole skips it."""
+    from rsmcheck.core.plugins import available
+    from rsmcheck.orchestration import executor
+    from rsmcheck.orchestration.kernels import compile_kernels
+
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    write = (lambda line: reporter.write_line(f"compiling the kernels once: {line}")) if reporter else None
+    compile_kernels([e for e in ENGINES if available(e)], 2, write, again=False)
+    executor.close_local()
+
+
 def pytest_collection_finish(session):
     jobs = _wanted(session.items)
     if jobs and not session.config.option.collectonly:
+        _compile_kernels(session)
         pool = session.config.stash[POOL] = RunPool()
         jobs.sort(key=lambda job: -expected_wall(job[0], job[1]))  # longest first (stable)
         for case, engine, short, options in jobs:

@@ -73,3 +73,9 @@ def use_source_keyed_cache() -> None:
         return
     numba.config.CACHE_DIR = str(cache_root() / source_key())
     _DONE = True
+
+
+def cache_dir() -> Path:
+    """The folder numba keeps the kernels in (after `use_source_keyed_cache`)."""
+    use_source_keyed_cache()
+    return Path(numba.config.CACHE_DIR)

@@ -67,9 +67,12 @@ REQUIRED = ("name", "label", "style", "simulates", "requires", "extra", "tables"
 #:                                       rows (a soft constraint, say), in the observable's unit,
 #:                                       added to the tolerance of its pairs only
 #:                                       (rsmcheck.core.tolerances)
+#:   kernel_runs                         groups of (case, options): short runs that between them
+#:                                       compile the engine's kernels, a group per process
+#:                                       (rsmcheck.orchestration.kernels, `rsmcheck compile`)
 #:   rigid_checks, aba_timing            a plug-in that checks (Pinocchio)
 CAPABILITIES = ("linear_plant", "coupled_frequencies", "link_frequencies", "rhs_timing", "refined_options",
-                "finer_options", "departures",
+                "finer_options", "departures", "kernel_runs",
                 "rigid_checks", "aba_timing")
 
 
@@ -398,6 +401,27 @@ def finer_options(name: str, case: Case) -> dict[str, Any] | None:
     """Plug-in `name`'s constructor options of a run of `case` refined in space and in time
     (its optional `finer_options`), as `refined_options`."""
     return _options_of(name, case, "finer_options")
+
+
+def kernel_runs(name: str) -> tuple[tuple[tuple[str, dict[str, Any]], ...], ...]:
+    """Plug-in `name`'s groups of (case name, constructor options) that compile its kernels
+    (its optional `kernel_runs`); () without.  An option outside its `engine_options`, or a
+    group that is not a sequence of (case, options) pairs, is an InputError naming it."""
+    p = plugin(name)
+    groups = getattr(p, "kernel_runs", None) or ()
+    out = []
+    for i, group in enumerate(groups):
+        try:
+            runs = tuple((str(c), dict(o)) for c, o in group)
+        except (TypeError, ValueError):
+            raise InputError(f"plug-in {name}", f"kernel_runs[{i}]", "must be a sequence of (case, options)") from None
+        for c, o in runs:
+            unknown = sorted(set(o) - set(p.engine_options))
+            if unknown:
+                raise InputError(f"plug-in {name}", f"kernel_runs[{i}]",
+                                 f"{c}: options {', '.join(unknown)} are not among its engine_options")
+        out.append(runs)
+    return tuple(out)
 
 
 def _options_of(name: str, case: Case, capability: str) -> dict[str, Any] | None:
