@@ -215,9 +215,8 @@ def _cmd_budget(args: argparse.Namespace) -> int:
         raise InputError("--engines", args.engines, "a budget compares two or more engines")
     if args.apply and len(engines) != 2:
         raise InputError("--apply", ",".join(engines), "writes the rows of one pair of engines: name two")
-    if args.apply and set(engines) != set(default_engines()):
-        raise InputError("--apply", ",".join(engines), "writes the pair the case files state, the default engines "
-                         f"({','.join(default_engines())}); another pair is judged by those rows' parts")
+    # the stated pair writes its rows; another pair only its engines' own errors (engine_errors)
+    stated_pair = set(engines) == set(default_engines())
     run_dir = output_dir(args.runs, "--runs") if args.runs else None
     results = budget.measure(cases, args.short, engines, _progress, workers=0 if args.serial else 2,
                              run_dir=run_dir)
@@ -241,7 +240,8 @@ def _cmd_budget(args: argparse.Namespace) -> int:
                 print(f"{cb.case.path}: nothing set: a sequence's phase rows ([compare.PHASE.OBSERVABLE]) are "
                       "written by hand from the suggestions (docs/cases.md §6)")
                 continue
-            edit = case_edit.apply_rows(cb.case, args.short, budget.suggestions(cb, suggest))
+            edit = case_edit.apply_rows(cb.case, args.short, budget.suggestions(cb, suggest) if stated_pair
+                                        else budget.engine_error_rows(cb))
             applied |= {(cb.name, obs) for obs in edit.changed}
             left = [r.observable for r in cb.rows if r.observable not in {*edit.changed, *edit.refused}]
             print(f"{edit.path}: " + "; ".join(

@@ -161,6 +161,10 @@ class CompareSpec:
     #: flag, a bound by definition) whose tolerance is the same for every pair.
     allowance: float | None = None
     errors: Mapping[str, float] = field(default_factory=dict)
+    #: engine → the own integration error of an engine outside the stated pair, recorded
+    #: from its refined run (`rsmcheck budget`) so that a check need not run it again; it
+    #: enters that engine's pairs only, as a measured one would
+    engine_errors: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -620,8 +624,13 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
             "window": lambda kk, x: _window(w, kk, x),
             "allowance": lambda kk, x: _number(w, kk, x, 0.0),
             "errors": lambda kk, x: _errors(w, kk, x),
+            "engine_errors": lambda kk, x: _errors(w, kk, x, pair=False),
         })
         _require(w, k, c, ("tolerance", "why"))
+        if "engine_errors" in c and "errors" not in c:
+            raise InputError(w, f"{k}.engine_errors", "only with a budget (allowance and errors)")
+        for e in set(c.get("engine_errors", {})) & set(c.get("errors", {})):
+            raise InputError(w, f"{k}.engine_errors.{e}", "is in errors already: the stated pair's own errors")
         if ("allowance" in c) != ("errors" in c):
             given, other = ("allowance", "errors") if "allowance" in c else ("errors", "allowance")
             raise InputError(w, f"{k}.{other}", f"missing (required with {given}: a budget has both parts)")
@@ -634,12 +643,14 @@ def _compare(w: str, key: str, v: Any) -> tuple[CompareSpec, ...]:
     return tuple(out)
 
 
-def _errors(w: str, key: str, v: Any) -> dict[str, float]:
-    """{engine: integration error ≥ 0} of a row's budget: the two registered engines it was
-    measured on (a misspelt name would silently change which pair the row states)."""
-    if not isinstance(v, Mapping) or len(v) != 2:
+def _errors(w: str, key: str, v: Any, pair: bool = True) -> dict[str, float]:
+    """{engine: integration error ≥ 0} of registered engines: of a row's budget, the two it
+    was measured on (`pair`: a misspelt name would silently change which pair the row
+    states); else (`engine_errors`) any others."""
+    if not isinstance(v, Mapping) or (len(v) != 2 if pair else not v):
         raise InputError(w, key, "must be a table of the two engines the budget was measured on, "
-                         "e.g. { reference = 7.0e-10, exudyn = 1.8e-09 }")
+                         "e.g. { reference = 7.0e-10, exudyn = 1.8e-09 }" if pair else
+                         "must be a table of engines and their own errors, e.g. { mujoco = 1.0e-06 }")
     known = set(plugins()) | set(broken_plugins())
     for e in v:
         if e not in known:

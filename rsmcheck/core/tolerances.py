@@ -14,7 +14,8 @@ factor:
   same for every pair; it is measured as the model difference of the pair (P, Q) the
   case file names, the engines that differ by exactly those departures;
 * ε_X — engine X's own discretisation and integration error on this run, by the row's
-  metric: the case file's where it was recorded (P and Q), else d(X, X refined) measured
+  metric: the case file's where it was recorded (P and Q in `errors`, any other engine in
+  `engine_errors`, both from `rsmcheck budget`), else d(X, X refined) measured
   now by X's plug-in's `refined_options`, else — a plug-in without one — taken as 0, and
   the row says so;
 * δ_X — an allowance for engine X's own listed departures (its plug-in's optional
@@ -151,6 +152,8 @@ def pair_tolerance(spec: Any, pair: tuple[str, str], measured: Mapping[str, floa
     for e in dict.fromkeys(pair):
         if e in spec.errors:
             errors.append(EngineError(e, float(spec.errors[e]), "recorded", refinements.get(e, "")))
+        elif e in spec.engine_errors:
+            errors.append(EngineError(e, float(spec.engine_errors[e]), "recorded", refinements.get(e, "")))
         elif measured.get(e) is not None:
             errors.append(EngineError(e, float(measured[e]), "measured", refinements.get(e, "")))
         else:

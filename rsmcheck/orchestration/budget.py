@@ -548,6 +548,26 @@ def suggestions(cb: CaseBudget, suggest: Suggest = Suggest()) -> dict[str, dict[
             if r.complete and (tol := r.suggested_tolerance(suggest.factor)) is not None}
 
 
+def engine_error_rows(cb: CaseBudget) -> dict[str, dict[str, Any]]:
+    """observable → {"engine_errors": …} that `--apply` writes for a pair other than the one
+    the case file states: the own integration error of each engine outside the row's stated
+    pair, measured here, merged with the engines the row records already; only budgeted rows
+    of a stand-alone case whose runs all ran (the tolerance, the allowance and the stated
+    errors stay the case file's)."""
+    if cb.failures or cb.case.phases:
+        return {}
+    stated = {s.observable: s for s in cb.case.variant(cb.short).compare if s.allowance is not None}
+    out = {}
+    for r in cb.rows:
+        spec = stated.get(r.observable)
+        if spec is None:
+            continue
+        new = {e: float(v) for e, v in r.integration_error.items() if e not in spec.errors and v is not None}
+        if new:
+            out[r.observable] = {"engine_errors": {**dict(spec.engine_errors), **new}}
+    return out
+
+
 def summary(results: Sequence[CaseBudget]) -> str:
     """'7 rows: 4 ok, 1 tight, 2 blind', and what was not measured or failed."""
     rows = [r for cb in results for r in cb.rows]

@@ -68,7 +68,7 @@ def toml_value(key: str, value: Any) -> str:
     a one-line inline table, `why` as a one-line basic string."""
     if key == "why":
         return toml_string(value)
-    if key == "errors":
+    if key in ("errors", "engine_errors"):
         return "{ " + ", ".join(f"{e} = {toml_float(v)}" for e, v in value.items()) + " }"
     return toml_float(value)
 

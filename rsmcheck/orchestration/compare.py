@@ -413,7 +413,8 @@ def engine_pairs(engines: Sequence[str]) -> list[tuple[str, str]]:
 def needs_error(variant, engine: str) -> bool:
     """Whether a budgeted row of `variant` does not record `engine`'s own integration error
     (so that judging it needs its refined run)."""
-    return any(s.allowance is not None and engine not in s.errors for s in variant.compare)
+    return any(s.allowance is not None and engine not in s.errors and engine not in s.engine_errors
+               for s in variant.compare)
 
 
 def integration_errors(variant, runs: Mapping[str, EngineRun],

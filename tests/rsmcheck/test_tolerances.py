@@ -76,6 +76,13 @@ def test_the_shipped_rows_state_the_in_tree_pair(tmp_path):
     ("errors = { reference = 1e-9, exudyn = 1e-9 }", "allowance", "missing"),
     ("allowance = -1e-8\nerrors = { reference = 1e-9, exudyn = 1e-9 }", "allowance", "must be >="),
     ("allowance = 1e-8\nerrors = { reference = 1e-9 }", "errors", "two engines"),
+    ("engine_errors = { exudyn = 1e-9 }", "engine_errors", "only with a budget"),
+    ("allowance = 1e-8\nerrors = { reference = 1e-9, exudyn = 1e-9 }\nengine_errors = { exudyn = 1e-9 }",
+     "engine_errors.exudyn", "is in errors already"),
+    ("allowance = 1e-8\nerrors = { reference = 1e-9, exudyn = 1e-9 }\nengine_errors = { nosuch = 1e-9 }",
+     "engine_errors.nosuch", "not a registered engine"),
+    ("allowance = 1e-8\nerrors = { reference = 1e-9, exudyn = 1e-9 }\nengine_errors = { pinocchio = -1 }",
+     "engine_errors.pinocchio", "must be >="),
 ])
 def test_a_half_budget_is_one_error_naming_the_key(tmp_path, row, key, reason):
     text = open(load_case("capture").path, encoding="utf-8").read()
@@ -86,6 +93,22 @@ def test_a_half_budget_is_one_error_naming_the_key(tmp_path, row, key, reason):
     with pytest.raises(InputError) as exc:
         load_case(str(path))
     assert f"compare.grasp_state.{key}" in str(exc.value) and reason in str(exc.value)
+
+
+def test_a_recorded_error_of_an_engine_outside_the_pair_is_used_instead_of_a_refined_run():
+    """`engine_errors` (from `rsmcheck budget`): the engine's pairs take it as recorded, a
+    measured value does not replace it, and a check needs no refined run of that engine."""
+    from dataclasses import replace
+
+    from rsmcheck.orchestration.compare import needs_error
+
+    row = replace(ROW, engine_errors={"mine": 4e-9})
+    pt = pair_tolerance(row, ("reference", "mine"), measured={"mine": 1.0})
+    assert pt.tolerance == pytest.approx(K * (3.2e-8 + 7.0e-10 + 4e-9), rel=1e-12)
+    assert "mine integration 4.0e-09 (recorded" in pt.why()
+    assert pair_tolerance(row, ("reference", "exudyn")).tolerance == 1.2e-7  # the stated pair as stated
+    variant = replace(load_case("capture"), compare=(row,))
+    assert not needs_error(variant, "mine") and needs_error(variant, "other")
 
 
 def test_a_chained_phase_gives_every_pair_the_stated_tolerance_and_says_why():
