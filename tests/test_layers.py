@@ -10,7 +10,7 @@ Layers, lowest first, each a folder (README, Layout):
   geometry, analytic beam frequencies;
 * driver — rsmcheck/driver/, shared by every engine: initial conditions, controllers, the
   runner;
-* engines — the plug-in packages reference_model, exudyn_model, pinocchio_check
+* engines — the plug-in packages reference_model, exudyn_model, pinocchio_check, mujoco_model
   (independent of each other: only pinocchio_check's comparison module may read the
   reference model, which it checks);
 * orchestration — rsmcheck/orchestration/: chaining, comparison, collection, the gate,
@@ -43,25 +43,26 @@ PACKAGES = {
     "reference_model": "reference_model",
     "exudyn_model": "exudyn_model",
     "pinocchio_check": "pinocchio_check",
+    "mujoco_model": "mujoco_model",
 }
 
 #: (layer, module patterns), lowest first; "pkg.*" is a package and every module of it
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("floor", ("rsmcheck", "rsmcheck.core.*")),
     ("driver", ("rsmcheck.driver.*",)),
-    ("engines", ("reference_model.*", "exudyn_model.*", "pinocchio_check.*")),
+    ("engines", ("reference_model.*", "exudyn_model.*", "pinocchio_check.*", "mujoco_model.*")),
     ("orchestration", ("rsmcheck.orchestration.*",)),  # the folder is the layer
     ("report", ("rsmcheck.report.*",)),
     ("entry", ("rsmcheck.cli",)),
 ]
 
 #: the engines: each is independent of the others ...
-ENGINES = ("reference_model", "exudyn_model", "pinocchio_check")
+ENGINES = ("reference_model", "exudyn_model", "pinocchio_check", "mujoco_model")
 #: ... except these (importing module, imported engine)
 ENGINE_EDGES_ALLOWED = {("pinocchio_check.compare", "reference_model")}
 #: third-party engine libraries and the engine packages that own them; the floor and the
 #: driver (shared by every engine) import none of them, an engine only its own
-ENGINE_LIBRARIES = {"exudyn": "exudyn_model", "pinocchio": "pinocchio_check"}
+ENGINE_LIBRARIES = {"exudyn": "exudyn_model", "pinocchio": "pinocchio_check", "mujoco": "mujoco_model"}
 #: deferred imports allowed outside the engine packages besides those of the engines
 #: (importing module, imported module): the command line imports the modules that read
 #: scipy, plotly and jinja2 only for the commands that need them — at the top they take

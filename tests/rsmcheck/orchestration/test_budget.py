@@ -466,12 +466,31 @@ def test_a_sequence_is_budgeted_by_its_phases_rows_in_the_chained_flight(fake_en
     assert open(mission.path, encoding="utf-8").read() == before
 
 
-def test_apply_writes_only_the_pair_the_case_files_state(monkeypatch, capsys):
-    """--apply with another pair would make its model difference (a deliberate change, say)
-    every pair's allowance: refused, one line, before anything runs."""
-    import rsmcheck.cli as cli
+def test_apply_with_another_pair_records_only_its_engines_own_errors(fake_engines, tmp_path, capsys, monkeypatch):
+    """`--apply --engines mujoco,reference`: the rows keep their tolerance, allowance, stated
+    errors and why (another pair's model difference never becomes every pair's allowance); each budgeted row gains `engine_errors = { mujoco = ε }`, ε measured
+    against the engine's refined run, and a check then needs no refined run of it."""
+    from rsmcheck.orchestration.compare import needs_error
 
-    monkeypatch.setattr(cli, "default_engines", lambda: ("exudyn", "pinocchio"))
-    assert main(["budget", "p1_rigid_gains", "--short", "--engines", "reference,exudyn", "--apply"]) == 2
-    err = capsys.readouterr().err
-    assert "--apply" in err and "the default engines (exudyn,pinocchio)" in err and len(err.strip().splitlines()) == 1
+    cases = tmp_path / "cases"
+    cases.mkdir()
+    text = open(load_case("p1_rigid_gains").path, encoding="utf-8").read().replace(
+        'name = "p1_rigid_gains"', 'name = "p1_copy"')
+    (cases / "p1_copy.toml").write_text(text, encoding="utf-8")
+    monkeypatch.setitem(SYNTHETIC, ("mujoco", False), (3e-8, 68.1))
+    monkeypatch.setitem(SYNTHETIC, ("mujoco", True), (3.5e-8, 68.12))
+    before = load_case(str(cases / "p1_copy.toml")).variant(True)
+    assert needs_error(before, "mujoco")
+    main(["--cases-dir", str(cases), "budget", "p1_copy", "--short", "--serial", "--apply",
+          "--engines", "mujoco,reference", "--out", str(tmp_path / "budget.json")])
+    assert "p1_copy.toml: set " in capsys.readouterr().out
+    after = load_case(str(cases / "p1_copy.toml")).variant(True)
+    assert not needs_error(after, "mujoco")
+    for old, new in zip(before.compare, after.compare):
+        assert (new.tolerance, new.allowance, dict(new.errors), new.why) == \
+               (old.tolerance, old.allowance, dict(old.errors), old.why)
+        if old.allowance is not None:
+            assert set(new.engine_errors) == {"mujoco"} and new.engine_errors["mujoco"] > 0.0
+    new_lines = (cases / "p1_copy.toml").read_text(encoding="utf-8").splitlines()
+    assert [ln for ln in new_lines if ln not in text.splitlines()] == \
+           [ln for ln in new_lines if ln.startswith("engine_errors = { mujoco = ")]
