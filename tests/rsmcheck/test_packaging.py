@@ -77,13 +77,14 @@ def test_the_wheel_carries_the_case_files_and_the_departures(wheel):
 def test_the_engines_are_extras():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
     base = " ".join(project["dependencies"])
-    for name in ("exudyn", "pin", "greenlet"):
+    for name in ("exudyn", "pin", "greenlet", "mujoco"):
         assert name not in base.replace("pinocchio", ""), name
     extras = project["optional-dependencies"]
     assert any(d.startswith("exudyn") for d in extras["exudyn"])
     assert any(d.startswith("greenlet") for d in extras["exudyn"])
     assert any(d.startswith("pin") for d in extras["pinocchio"])
-    assert extras["all"] == ["rsmcheck[exudyn,pinocchio]"]
+    assert any(d.startswith("mujoco") for d in extras["mujoco"])
+    assert extras["all"] == ["rsmcheck[exudyn,pinocchio,mujoco]"]
 
 
 #: every module outside the engine packages

@@ -32,7 +32,7 @@ def test_every_fault_applies_exactly_once():
 
 #: where a run's code and inputs are: the plug-ins' packages, the shared core and driver, the
 #: case files (not the orchestration, whose analyses may state a formula again, nor the tests)
-RUN_CODE = ("reference_model/", "exudyn_model/", "pinocchio_check/", "rsmcheck/core/", "rsmcheck/driver/", "cases/")
+RUN_CODE = ("reference_model/", "exudyn_model/", "mujoco_model/", "pinocchio_check/", "rsmcheck/core/", "rsmcheck/driver/", "cases/")
 
 
 def test_every_fault_text_occurs_once_in_the_code_a_run_executes():
