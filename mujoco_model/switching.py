@@ -61,6 +61,21 @@ def _frame_angle(engine, k: int) -> float:
     return float(engine.observer.kin().frame[k, 2])
 
 
+def _switch(engine, k: int, on: bool) -> dict[str, float]:
+    """Grasp k on (its terminal link then pinned–pinned) or off (pinned–free): the equality
+    switched, the velocities projected from the mass matrix before the switch."""
+    st, d, ix = engine.state, engine.d, engine.mm.index
+    before = _frame_angle(engine, k)
+    M_old = engine.mass_matrix()
+    st.grasp_on[k] = int(on)
+    d.eq_active[ix.grasp_eq[k]] = int(on)
+    basis = list(st.basis)
+    basis[3 * k + 2] = "PP" if on else "PF"
+    loss = _project(engine, M_old, basis)
+    return {"delta_rad": _frame_angle(engine, k) - before, "residual_m": 0.0, "residual_mps": 0.0,
+            "impact_loss_J": loss}
+
+
 def capture(engine, arm: int) -> dict[str, float]:
     st, d, ix = engine.state, engine.d, engine.mm.index
     k = arm - 1
@@ -69,30 +84,12 @@ def capture(engine, arm: int) -> dict[str, float]:
     XT = d.qpos[ix.target].copy()
     st.rho_G[k] = rot(XT[2]).T @ (rE - XT[:2])
     engine.mm.model.site_pos[ix.hold_site[k], :2] = st.rho_G[k]
-    before = _frame_angle(engine, k)
-    M_old = engine.mass_matrix()
-    st.grasp_on[k] = 1
-    d.eq_active[ix.grasp_eq[k]] = 1
-    basis = list(st.basis)
-    basis[3 * k + 2] = "PP"
-    loss = _project(engine, M_old, basis)
-    return {"delta_rad": _frame_angle(engine, k) - before, "residual_m": 0.0, "residual_mps": 0.0,
-            "impact_loss_J": loss}
+    return _switch(engine, k, True)
 
 
 def release(engine, arm: int) -> dict[str, float]:
-    st, d, ix = engine.state, engine.d, engine.mm.index
-    k = arm - 1
     _kinematics(engine)
-    before = _frame_angle(engine, k)
-    M_old = engine.mass_matrix()
-    st.grasp_on[k] = 0
-    d.eq_active[ix.grasp_eq[k]] = 0
-    basis = list(st.basis)
-    basis[3 * k + 2] = "PF"
-    loss = _project(engine, M_old, basis)
-    return {"delta_rad": _frame_angle(engine, k) - before, "residual_m": 0.0, "residual_mps": 0.0,
-            "impact_loss_J": loss}
+    return _switch(engine, arm - 1, False)
 
 
 def grasp_forces(engine) -> np.ndarray:
