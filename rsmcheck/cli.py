@@ -276,11 +276,14 @@ def _cmd_modes(args: argparse.Namespace) -> int:
         print(f"  {r['basis']:5s} {r['mode']:4d} {r['table2_hz']:9.2f} {r['analytic_hz']:10.4f}"
               + "".join(f" {r[e + '_hz']:10.4f}" for e in lk) + "".join(f" {100 * r[e + '_rel']:+8.4f}%" for e in lk))
     ak = [e for e in engines if arms and f"{e}_hz" in arms[0]]
-    print("Coupled frequencies of the robot at rest, undamped [Hz]")
-    print(f"  {'configuration':17s} {'mode':>4s}" + "".join(f" {e[:10]:>10s}" for e in ak) + f" {'difference':>11s}")
+    rk = [e for e in ak if arms and f"{e}_rel" in arms[0]]
+    print("Coupled frequencies of the robot at rest, undamped [Hz]"
+          + (f"; differences from {ak[0]}" if rk else ""))
+    print(f"  {'configuration':17s} {'mode':>4s}" + "".join(f" {e[:10]:>10s}" for e in ak)
+          + "".join(f" {e[:9] + ' diff':>14s}" for e in rk))
     for r in arms:
         print(f"  {r['configuration']:17s} {r['mode']:4d}" + "".join(f" {r[e + '_hz']:10.4f}" for e in ak)
-              + (f" {100 * r['rel_difference']:+10.4f}%" if "rel_difference" in r else ""))
+              + "".join(f" {100 * r[e + '_rel']:+13.4f}%" for e in rk))
     return 0
 
 

@@ -61,8 +61,8 @@ def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n:
              options: Mapping[str, Mapping[str, Any]] | None = None,
              engines: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """The first `n` coupled frequencies of each configuration in each engine
-    (`coupled_frequencies` of its plug-in): keys "ENGINE_hz", and `rel_difference` of the
-    second engine against the first (the model under test)."""
+    (`coupled_frequencies` of its plug-in): keys "ENGINE_hz", and "ENGINE_rel" of every engine
+    after the first: its relative difference from the first engine's ("against")."""
     options = options or {}
     engines = [e for e in (engines or default_engines()) if getattr(plugin(e), "coupled_frequencies", None)]
     rows = []
@@ -73,7 +73,8 @@ def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n:
             row = {"configuration": label, "case": case_name, "description": what, "mode": j + 1}
             row.update({f"{e}_hz": float(f[e][j]) for e in engines})
             if len(engines) > 1:
-                row["rel_difference"] = float(f[engines[1]][j] / f[engines[0]][j] - 1)
+                row["against"] = engines[0]
+                row.update({f"{e}_rel": float(f[e][j] / f[engines[0]][j] - 1) for e in engines[1:]})
             rows.append(row)
     return rows
 

@@ -369,7 +369,7 @@ def _fake_modes(monkeypatch):
     monkeypatch.setattr(modes, "link_rows", lambda options=None, engines=None: [
         {"basis": "PP", "mode": 1, "analytic_hz": 30.16, "reference_hz": 30.16, "exudyn_hz": NAN}])
     monkeypatch.setattr(modes, "arm_rows", lambda options=None, engines=None: [
-        {"configuration": "x", "mode": 1, "reference_hz": 1.0, "exudyn_hz": INF, "rel_difference": INF}])
+        {"configuration": "x", "mode": 1, "reference_hz": 1.0, "exudyn_hz": INF, "against": "reference", "exudyn_rel": INF}])
 
 
 def _fake_pinocchio(monkeypatch):
