@@ -292,8 +292,8 @@ def _cmd_compile(args: argparse.Namespace) -> int:
     engines = _engine_names(args.engines or "all")
     walls = kernels.compile_kernels([e for e in engines if plugin(e).simulates], args.workers, print,
                                     again=args.again)
-    print(f"compiled: {len(walls)} groups of {', '.join(engines)} (cache {jit.cache_dir()}; an engine already"
-          " compiled for this code is skipped, --again runs its groups anyway)")
+    print(f"compiled: {len(walls)} groups of {', '.join(engines)} (cache {jit.cache_dir()}; a group already"
+          " compiled for this code is skipped, --again runs it anyway)")
     return 0
 
 

@@ -13,8 +13,12 @@ a folder of the session and comes back as a `SequenceRun` (the run, the file's a
 the folder with its end states).  Jobs start longest first (the wall time each golden
 recorded, goldens/; a sequence: the sum of its phases'), so that no long run starts last
 while the other core has nothing left to do; the tests that read pool runs are collected
-last, so that the main process meanwhile runs everything else.  Before the pool starts,
-the engines' kernels are compiled once, on both cores (`_compile_kernels`).
+last, so that the main process meanwhile runs everything else.  The pool's first jobs
+compile the engines' kernels once (each engine's first `kernel_runs` group, what the cases'
+default settings reach: rsmcheck.orchestration.kernels); an engine's runs are queued when its
+group is done, so that a worker never compiles what another is compiling, while the other
+worker already flies an engine that is ready.  The main process waits for every group
+before its first test (`RunPool.wait_compiled`).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import os
 import shutil
 import site
 import tempfile
+import threading
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -87,7 +92,8 @@ def expected_wall(case_name: str, engine: str) -> float:
 
 
 class RunPool:
-    """Runs keyed by (case, engine, options); computed in the background, on demand."""
+    """Runs keyed by (case, engine, options); computed in the background, on demand.  An
+    engine whose kernels are being compiled (`compile`) has its runs queued when that is done."""
 
     def __init__(self, workers: int = 2):
         # the workers unpickle `_job` as tests.conftest._job: the repository root must be on
@@ -95,7 +101,56 @@ class RunPool:
         self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                         initializer=site.addsitedir, initargs=(str(ROOT),))
         self.futures: dict[tuple, Future] = {}
+        self.compiling: dict[str, list[Future]] = {}  # engine → its compile jobs
+        self.waiting: dict[str, list[tuple[tuple, Future]]] = {}  # engine → (job key, placeholder)
+        self.lock = threading.Lock()
         self.workdir = tempfile.mkdtemp(prefix="rsmcheck-runs-")
+
+    def compile(self, engines) -> None:
+        """Submit the first `kernel_runs` group of each engine not compiled on this tree; a
+        thread per engine marks it when done and then queues the runs that waited for it."""
+        from rsmcheck.orchestration import kernels
+
+        for job in kernels.compile_jobs(engines, groups=1, again=False):
+            engine, group = job.key
+            future = self.pool.submit(job.fn, *job.args)
+            self.compiling.setdefault(engine, []).append(future)
+            threading.Thread(target=self._release, args=(engine, group, future), daemon=True).start()
+
+    def _release(self, engine: str, group: int, future: Future) -> None:
+        from rsmcheck.orchestration import kernels
+
+        try:
+            future.result()
+            kernels.mark(engine, group)
+        except Exception:  # noqa: BLE001 — wait_compiled raises it; the runs then fail on their own
+            pass
+        finally:
+            with self.lock:
+                self.compiling.pop(engine, None)
+                waiting = self.waiting.pop(engine, [])
+            for key, placeholder in waiting:
+                self._chain(self._submit_now(key), placeholder)
+
+    def wait_compiled(self) -> None:
+        """Block until every compile job is done; raise the first one's error."""
+        for futures in list(self.compiling.values()):
+            for future in futures:
+                future.result()
+
+    @staticmethod
+    def _chain(source: Future, target: Future) -> None:
+        def copy(f: Future) -> None:
+            if f.exception() is not None:
+                target.set_exception(f.exception())
+            else:
+                target.set_result(f.result())
+
+        source.add_done_callback(copy)
+
+    def _submit_now(self, k: tuple) -> Future:
+        case, engine, short, options = k
+        return self.pool.submit(_job, engine, case, short, dict(options), self.workdir)
 
     @staticmethod
     def key(case: str, engine: str, short: bool = True, **options) -> tuple:
@@ -103,9 +158,14 @@ class RunPool:
 
     def submit(self, case: str, engine: str, short: bool = True, **options) -> Future:
         k = self.key(case, engine, short, **options)
-        if k not in self.futures:
-            self.futures[k] = self.pool.submit(_job, engine, case, short, dict(options), self.workdir)
-        return self.futures[k]
+        with self.lock:
+            if k not in self.futures:
+                if engine in self.compiling:
+                    self.futures[k] = Future()
+                    self.waiting.setdefault(engine, []).append((k, self.futures[k]))
+                else:
+                    self.futures[k] = self._submit_now(k)
+            return self.futures[k]
 
     def get(self, case: str, engine: str, short: bool = True, **options):
         run, info = self.submit(case, engine, short, **options).result()
@@ -144,28 +204,20 @@ def pytest_configure(config):
 POOL = pytest.StashKey[RunPool]()
 
 
-def _compile_kernels(session) -> None:
-    """Fill the kernel cache before the pool and this process start (rsmcheck.orchestration.
-    kernels): on a fresh tree both workers and this process would each compile the same
-    kernels; a tree whose cache is whole skips it."""
-    from rsmcheck.core.plugins import available
-    from rsmcheck.orchestration import executor
-    from rsmcheck.orchestration.kernels import compile_kernels
-
-    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
-    write = (lambda line: reporter.write_line(f"compiling the kernels once: {line}")) if reporter else None
-    compile_kernels([e for e in ENGINES if available(e)], 2, write, again=False)
-    executor.close_local()
-
-
 def pytest_collection_finish(session):
     jobs = _wanted(session.items)
     if jobs and not session.config.option.collectonly:
-        _compile_kernels(session)
+        from rsmcheck.core.plugins import available
+
         pool = session.config.stash[POOL] = RunPool()
+        pool.compile([e for e in ENGINES if available(e)])
         jobs.sort(key=lambda job: -expected_wall(job[0], job[1]))  # longest first (stable)
         for case, engine, short, options in jobs:
             pool.submit(case, engine, short, **dict(options))
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        if reporter and pool.compiling:
+            reporter.write_line("compiling the kernels of " + ", ".join(pool.compiling) + " once, in the pool")
+        pool.wait_compiled()
 
 
 def pytest_sessionfinish(session):

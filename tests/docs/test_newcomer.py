@@ -6,8 +6,8 @@ leaves the tree alone.  A copy of the whole of cases/ would not do: a case name 
 folders is an error, and cases/ is always read.  Step 6 (the generated row in docs/cases.md)
 concerns the shipped cases only and is tests/docs/test_doc_tables.py's.
 
-free_drift's short variant is 5 s of flight in both engines; the test takes about a minute
-on two cores, most of it the bless (three runs per engine and a code path); the report,
+The new case's short variant flies 1 s (free_drift's flies 5 s); most of the test is the bless
+(three runs per engine and a code path); the report,
 restricted to the new case, leaves out the robot-wide tables (docs/commands.md).
 """
 
@@ -49,7 +49,10 @@ def test_a_new_case_can_be_checked_blessed_and_reported(tmp_path):
     text = (ROOT / "cases" / "free_drift.toml").read_text(encoding="utf-8")
     edited = text.replace('name = "free_drift"', f'name = "{NAME}"')
     edited = re.sub(r"base_rate = \[[^\]]*\]", "base_rate = [0.02, -0.01, 0.05]", edited)
-    assert edited.count(NAME) == 1 and "0.05]" in edited, "free_drift.toml no longer looks as README says"
+    # and a short variant of 1 s (free_drift's flies 5 s): every step below runs it
+    edited = re.sub(r"short_duration = [0-9.]+", "short_duration = 1.0", edited)
+    assert edited.count(NAME) == 1 and "0.05]" in edited and "short_duration = 1.0" in edited, \
+        "free_drift.toml no longer looks as README says"
     (cases / f"{NAME}.toml").write_text(edited + COMPARE, encoding="utf-8")
 
     # 3. rsmcheck check --short NAME: exit 0

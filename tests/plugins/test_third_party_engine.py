@@ -31,6 +31,8 @@ ENGINES = ["reference", "twomode"]
 #: the check of (b): the in-tree engines, the plug-in and the distribution's two variants of
 #: the reference (rsmcheck_twomode/variants.py, made with rsmcheck.core.derived)
 ALL = ["reference", "exudyn", "twomode", "sameref", "stiffref"]
+#: the session's runs the check of (b) reuses (tests/conftest.py)
+IN_TREE_RUNS = pytest.mark.engine_runs((CASE, "reference", True, ()), (CASE, "exudyn", True, ()))
 #: the plug-in's line style in the report (rsmcheck_twomode/plugin.py, `style`)
 TWOMODE_DASH = "dashdot"
 TIMEOUT = 900
@@ -52,16 +54,20 @@ def plugin_site(tmp_path_factory) -> Path:
     return site
 
 
-def rsmcheck(*args: str, site: Path | None, cwd: Path) -> subprocess.CompletedProcess:
-    """`rsmcheck ARGS` in a subprocess: this checkout's code, the plug-in's folder first on
-    the path when `site` is given; the engine defaults and case folders of the environment
-    left out."""
+def _env(site: Path | None) -> dict[str, str]:
+    """This checkout's code, the plug-in's folder first on the path when `site` is given; the
+    engine defaults and case folders of the environment left out."""
     env = {k: v for k, v in os.environ.items() if k not in ("RSMCHECK_ENGINES", "RSMCHECK_CASES_DIR")}
     path = [str(site)] if site is not None else []
     path += [str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
     env["PYTHONPATH"] = os.pathsep.join(path)
+    return env
+
+
+def rsmcheck(*args: str, site: Path | None, cwd: Path) -> subprocess.CompletedProcess:
+    """`rsmcheck ARGS` in a subprocess with `_env(site)`."""
     return subprocess.run([sys.executable, "-m", "rsmcheck.cli", *args], capture_output=True, text=True,
-                          cwd=cwd, env=env, timeout=TIMEOUT)
+                          cwd=cwd, env=_env(site), timeout=TIMEOUT)
 
 
 def _lines(text: str) -> list[str]:
@@ -93,16 +99,28 @@ def test_engines_lists_the_plugin_only_where_it_is_installed(plugin_site, tmp_pa
 # (b) a cross-check, reference against the plug-in
 # ---------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def checked(plugin_site, tmp_path_factory):
+def checked(plugin_site, tmp_path_factory, run_pool):
     """`rsmcheck check CASE --short --engines reference,exudyn,twomode,sameref,stiffref
-    --json`, the runs stored where the report of (d) finds them (its folder's runs/)."""
+    --json`, the runs stored where the report of (d) finds them (its folder's runs/).  The
+    in-tree engines' runs are the session's (the pool's), stored there first as `check
+    --out` stores them, with the source digest of the plug-in's environment: `check` reuses
+    them as it reuses any current stored run, and flies the plug-in's three engines."""
+    from rsmcheck.core.cases import load_case
+    from rsmcheck.orchestration.runs import store_runs
+
     folder = tmp_path_factory.mktemp("report")
+    digest = subprocess.run([sys.executable, "-c", "from rsmcheck.orchestration.runs import source_digest; "
+                             "print(source_digest())"], capture_output=True, text=True, check=True, cwd=folder,
+                            env=_env(plugin_site)).stdout.strip()
+    store_runs(folder / "runs", load_case(CASE), True, {e: run_pool.get(CASE, e) for e in ("reference", "exudyn")},
+               digest, {"reference": {}, "exudyn": {}})
     proc = rsmcheck("check", CASE, "--short", "--engines", ",".join(ALL), "--json",
                     "--out", str(folder / "runs"), site=plugin_site, cwd=folder)
     return proc, folder
 
 
 @pytest.mark.crosscheck
+@IN_TREE_RUNS
 def test_check_compares_the_reference_with_the_plugin(checked):
     """Both engines run and every row compares them; the static shapes matter, by a bounded
     amount.
@@ -162,6 +180,7 @@ def test_check_compares_the_reference_with_the_plugin(checked):
 
 
 @pytest.mark.crosscheck
+@IN_TREE_RUNS
 def test_each_pair_is_judged_by_its_own_tolerance(checked):
     """The pair model (rsmcheck.core.tolerances), on one check of five engines:
 
@@ -249,6 +268,7 @@ def test_bless_then_gate_the_plugin(plugin_site, tmp_path):
 # (d) the report draws the plug-in's curves in its own style
 # ---------------------------------------------------------------------------------------
 @pytest.mark.crosscheck
+@IN_TREE_RUNS
 def test_report_draws_the_plugin(plugin_site, checked):
     proc, folder = checked
     assert proc.returncode in (0, 1), proc.stderr
@@ -282,6 +302,7 @@ def test_report_draws_the_plugin(plugin_site, checked):
 
 
 @pytest.mark.crosscheck
+@IN_TREE_RUNS
 def test_the_report_of_three_engines_shows_every_pairs_rows(plugin_site, checked, chromium):
     """The page of reference, Exudyn and twomode, read by Chromium: the verdict table holds
     each observable once per pair (no row of one pair hides the other's), each with its own

@@ -7,7 +7,9 @@ stiff set S is the static shapes (and the highest eigenmodes) in both bases; and
 what it is for: with the static shapes' 0.8–0.9 kHz modes in the model it takes one step
 per 1 ms control sample where the explicit pair needs two or more.  The measurement that
 it does not pay at the suite's accuracy rests on these (docs/records.md).  Step
-counts are deterministic and can be asserted; wall time is not (docs/benchmarks.md).
+counts are deterministic and can be asserted; wall time is not (docs/benchmarks.md).  No case
+integrates with it by default: the tests that integrate are `study` (its kernels compile for
+minutes); the tableau's are not.
 """
 
 from __future__ import annotations
@@ -128,6 +130,7 @@ def test_the_stiff_set_is_the_static_shapes_and_the_highest_modes_in_both_bases(
 
 
 # ---- the integration ---------------------------------------------------------------
+@pytest.mark.study
 def test_imex_agrees_with_dopri5_and_its_error_shrinks_with_rtol(ringing_chain):
     case = ringing_chain
     exact = _advance(ReferenceEngine(case, integrator="dopri5", rtol=1e-11, static_modes="explicit"), 0.2, 1e-3, tau=10.0)
@@ -141,6 +144,7 @@ def test_imex_agrees_with_dopri5_and_its_error_shrinks_with_rtol(ringing_chain):
     assert errors[1] < errors[0] / 10.0, errors
 
 
+@pytest.mark.study
 def test_one_step_per_control_sample_where_the_explicit_pair_needs_two():
     """The point of the method: the static shapes' ~0.9 kHz modes bound DP5 near 0.46 ms;
     with them implicit, a quiet phase (the first 0.3 s of p1's transport, its own
@@ -159,6 +163,7 @@ def test_one_step_per_control_sample_where_the_explicit_pair_needs_two():
     assert imex_engine.stepper.imex.work[imex.W_JACOBIANS] == np.ceil(0.3 / imex.REFRESH_S)
 
 
+@pytest.mark.study
 def test_a_change_of_the_system_forces_a_new_L(ringing_chain):
     case = ringing_chain
     engine = ReferenceEngine(case, integrator="imex", static_modes="explicit")
@@ -169,6 +174,7 @@ def test_a_change_of_the_system_forces_a_new_L(ringing_chain):
     assert engine.stepper.imex.work[imex.W_JACOBIANS] == 2
 
 
+@pytest.mark.study
 def test_the_quiet_segments_go_to_the_quiet_integrator():
     """`quiet_integrator` (an option of the [reference] table): the intervals longer than the
     case's control period (a coast's 5 ms) go to the IMEX pair, the others to DP5, bit for

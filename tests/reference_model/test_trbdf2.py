@@ -5,14 +5,18 @@ the level of the tolerances), its error control works (the error shrinks with rt
 second order), and it is stiff-capable: in a quiet phase it takes steps far beyond the
 explicit stability limit (~2.5 ms for the 160 Hz link modes) without going unstable.
 Step counts are deterministic, so they can be asserted; wall time is not (docs/benchmarks.md).
+No case integrates with it by default: its tests are `study` (its kernels compile for minutes).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from reference_model.engine import ReferenceEngine
 from rsmcheck.core.engine import Inputs
+
+pytestmark = pytest.mark.study
 
 QUIET_ORBIT = """
 description = "closed chain at rest in orbit: only the tidal field moves it"

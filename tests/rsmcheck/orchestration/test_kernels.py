@@ -60,9 +60,31 @@ def test_one_job_per_group_then_a_marker_that_makes_the_next_call_free(cache):
     assert len(ran) == len(walls) == n_groups
     assert all(job.fn is kernels._compile_group for job in ran)
     assert kernels.compiled("reference") and kernels.compiled("exudyn")
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        f".compiled-{job.key[0]}-{job.key[1]}" for job in ran)
     ran.clear()
     assert kernels.compile_kernels(["reference", "exudyn"], again=False) == {} and ran == []
     assert len(kernels.compile_kernels(["exudyn"])) == len(reg.kernel_runs("exudyn"))  # again=True: runs
+
+
+def test_the_first_group_alone_then_the_rest_on_request(cache):
+    """groups=1 (the test session's choice): what the cases' default settings reach; the
+    implicit integrators' group is compiled by a later call, the first is not redone."""
+    ran, folder = cache
+    kernels.compile_kernels(["reference"], groups=1, again=False)
+    assert [job.key for job in ran] == [("reference", 1)]
+    assert kernels.compiled("reference", groups=1) and not kernels.compiled("reference")
+    ran.clear()
+    kernels.compile_kernels(["reference"], again=False)
+    assert [job.key[1] for job in ran] == list(range(2, len(reg.kernel_runs("reference")) + 1))
+    assert kernels.compiled("reference")
+
+
+def test_the_first_group_flies_every_case_on_its_default_integrator():
+    """The first group is what every case runs on: no non-default integrator in it."""
+    for name in ("reference", "exudyn"):
+        first = reg.kernel_runs(name)[0]
+        assert all("integrator" not in options for _, options in first), (name, first)
 
 
 def test_a_group_that_fails_raises_its_error_and_marks_nothing(cache, monkeypatch):
@@ -72,7 +94,7 @@ def test_a_group_that_fails_raises_its_error_and_marks_nothing(cache, monkeypatc
         job: Outcome(None, boom, 0.1) for job in jobs})
     with pytest.raises(RuntimeError, match="kernel did not compile"):
         kernels.compile_kernels(["exudyn"])
-    assert not kernels.compiled("exudyn")
+    assert not kernels.compiled("exudyn") and not any(folder.glob(".compiled-*"))
 
 
 def test_a_group_runs_its_cases_in_this_process_for_a_few_samples(monkeypatch):

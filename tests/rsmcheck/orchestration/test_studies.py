@@ -63,13 +63,25 @@ def test_integrator_grid_rejects_bad_items(text):
 def test_integrator_study_measures_each_rtol_against_the_tight_solution(tmp_path):
     """p1_rigid_gains' short variant (0.2 s): the tight Dormand–Prince solution against
     itself is exact, a looser rtol leaves a larger error than a tighter one on every
-    [compare] row, and the record is complete JSON with steps per control sample."""
+    [compare] row, and the record is complete JSON with steps per control sample.  (The
+    study's other integrators compile for minutes: `test_integrator_study_takes_imex`.)"""
     out = tmp_path / "integrators.json"
-    doc = integrator_study("p1_rigid_gains", [("dopri5", 1e-10), ("dopri5", 1e-6), ("imex", 1e-8)], out=out)
+    doc = integrator_study("p1_rigid_gains", [("dopri5", 1e-10), ("dopri5", 1e-6), ("dopri5", 1e-8)], out=out)
     rows = [c.observable for c in load_case("p1_rigid_gains").short.compare]
-    exact, loose, imex = doc["runs"]
+    exact, loose, tight = doc["runs"]
     assert set(exact["error"]) == set(rows)
     assert all(v == 0.0 for v in exact["error"].values())  # the same integrator at the same rtol
+    assert all(loose["error"][o] > tight["error"][o] > 0.0 for o in rows), (loose["error"], tight["error"])
+    assert exact["steps_per_sample"] >= 1.0 and tight["rejected_per_sample"] >= 0.0
+    assert json.loads(out.read_text())["runs"][2]["rtol"] == 1e-8
+
+
+@pytest.mark.study
+def test_integrator_study_takes_imex(tmp_path):
+    """The same study with the IMEX pair at rtol 1e-8: between the loose and the tight run."""
+    doc = integrator_study("p1_rigid_gains", [("dopri5", 1e-10), ("dopri5", 1e-6), ("imex", 1e-8)],
+                           out=tmp_path / "integrators.json")
+    rows = [c.observable for c in load_case("p1_rigid_gains").short.compare]
+    exact, loose, imex = doc["runs"]
     assert all(loose["error"][o] > imex["error"][o] > 0.0 for o in rows), (loose["error"], imex["error"])
-    assert exact["steps_per_sample"] >= 1.0 and imex["rejected_per_sample"] >= 0.0
-    assert json.loads(out.read_text())["runs"][2]["integrator"] == "imex"
+    assert doc["runs"][2]["integrator"] == "imex"
