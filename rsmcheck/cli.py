@@ -19,7 +19,8 @@ from rsmcheck.core.cases import CASES_ENV, cases_dirs, list_cases, load_case
 from rsmcheck.core.errors import InputError, exit_code, flush_stdout
 from rsmcheck.core.options import engines_option
 from rsmcheck.core import jit
-from rsmcheck.orchestration import bench, budget, case_edit, code_paths, compare, executor, fuzz, gate, kernels
+from rsmcheck.orchestration import (bench, benchmark, budget, case_edit, code_paths, compare, executor, fuzz, gate,
+                                    kernels)
 from rsmcheck.orchestration.chain import run_case
 from rsmcheck.orchestration.runs import source_digest
 from rsmcheck.core.plugins import (CAPABILITIES, available, broken_plugins, default_engines, engine_names, plugin,
@@ -136,10 +137,6 @@ def _engine_options(items: Sequence[str] | None, engines: Sequence[str]) -> dict
     return out
 
 
-def _fmt(x: float) -> str:
-    return "inf" if x == float("inf") else f"{x:.3g}" if x >= 0.01 else f"{x:.2e}"
-
-
 def _cmd_check(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out") if args.out else None
     cases = [load_case(name) for name in args.case]  # validate every case before running any
@@ -164,16 +161,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         variant = "short" if args.short and case.short is not None else "full"
         walls = ", ".join(f"{e} {res.wall_s[e]:.1f} s" for e in engines)
         print(f"{case.name} ({variant}, {res.duration:g} s; wall: {walls})")
-        print(f"  {'observable':20s} {'metric':8s} {'error':>10s} {'tolerance':>10s} {'margin':>8s}  result")
-        for i, r in enumerate(res.rows):
-            if len(engines) > 2 and (i == 0 or res.rows[i - 1].engines != r.engines):
-                print(f"  {r.engines[0]} against {r.engines[1]}:")
-            print(f"  {r.observable:20s} {r.metric_label:8s} {r.error:10.3e} {r.tolerance:10.3e} {_fmt(r.margin):>8s}  "
-                  + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
-            if r.tolerance_parts is not None and not r.tolerance_parts.stated:
-                print(f"  {'':20s} tolerance = {r.tolerance_parts.formula()}")
-            if r.switch_note():
-                print(f"  {'':20s} {r.switch_note()}")
+        print("\n".join(compare.row_lines(res.rows, pair_headers=len(engines) > 2)))
     rows = [r for res in results for r in res.rows]
     skipped = [{"case": res.case, "reason": res.skipped} for res in results if res.skipped]
     failed = [r for r in rows if not r.passed]
@@ -259,32 +247,36 @@ def _cmd_budget(args: argparse.Namespace) -> int:
 
 def _cmd_modes(args: argparse.Namespace) -> int:
     # lazy: at the top its scipy would add ≈ 0.5 s to every command (`rsmcheck --help` takes 0.4 s)
-    from rsmcheck.orchestration.modes import arm_rows, link_rows
+    from rsmcheck.orchestration.modes import arm_rows, link_rows, modes_text
 
     engines = _engine_names(args.engines)
     options = _engine_options(args.option, engines)
     links = link_rows(options=options, engines=engines)
     arms = arm_rows(options=options, engines=engines)
-    if args.json:
-        print(dumps_json({"links": links, "arms": arms}))
-        return 0
-    lk = [e for e in engines if f"{e}_hz" in links[0]]
-    print("Link eigenfrequencies [Hz]")
-    print(f"  {'basis':5s} {'mode':>4s} {'Table 2':>9s} {'analytic':>10s}" + "".join(f" {e[:10]:>10s}" for e in lk)
-          + "".join(f" {e[:5] + '-an':>9s}" for e in lk))
-    for r in links:
-        print(f"  {r['basis']:5s} {r['mode']:4d} {r['table2_hz']:9.2f} {r['analytic_hz']:10.4f}"
-              + "".join(f" {r[e + '_hz']:10.4f}" for e in lk) + "".join(f" {100 * r[e + '_rel']:+8.4f}%" for e in lk))
-    ak = [e for e in engines if arms and f"{e}_hz" in arms[0]]
-    rk = [e for e in ak if arms and f"{e}_rel" in arms[0]]
-    print("Coupled frequencies of the robot at rest, undamped [Hz]"
-          + (f"; differences from {ak[0]}" if rk else ""))
-    print(f"  {'configuration':17s} {'mode':>4s}" + "".join(f" {e[:10]:>10s}" for e in ak)
-          + "".join(f" {e[:9] + ' diff':>14s}" for e in rk))
-    for r in arms:
-        print(f"  {r['configuration']:17s} {r['mode']:4d}" + "".join(f" {r[e + '_hz']:10.4f}" for e in ak)
-              + "".join(f" {100 * r[e + '_rel']:+13.4f}%" for e in rk))
+    print(dumps_json({"links": links, "arms": arms}) if args.json else modes_text(links, arms, engines))
     return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    """`rsmcheck export`: each case's problem, reference solution and acceptance."""
+    out = output_dir(args.out, "--out")
+    cases = [load_case(name) for name in args.case]
+    run_dir = output_dir(args.runs, "--runs") if args.runs else None
+    engines = _engine_names(args.engines) if args.engines else []
+    for line in benchmark.export_cases(cases, args.short, engines, out, run_dir, _progress if sys.stderr.isatty() else None):
+        print(line)
+    return 0
+
+
+def _cmd_judge(args: argparse.Namespace) -> int:
+    """`rsmcheck judge`: every file read and judged before anything is printed; exit 1 when a row fails."""
+    if args.refined and len(args.results) != 1:
+        raise InputError("--refined", args.refined, "goes with one results file")
+    problems = Path(args.problems) if args.problems else benchmark.default_problems()
+    judged = [benchmark.judge_file(Path(p), problems, Path(args.refined) if args.refined else None) for p in args.results]
+    print(dumps_json({"judgements": [j.as_dict() for j in judged]}) if args.json else
+          "\n".join(line for j in judged for line in benchmark.judgement_lines(j)))
+    return 0 if all(j.passed for j in judged) else 1
 
 
 def _cmd_compile(args: argparse.Namespace) -> int:
@@ -442,6 +434,8 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "report": _cmd_report,
     "engines": _cmd_engines,
     "compile": _cmd_compile,
+    "export": _cmd_export,
+    "judge": _cmd_judge,
     "fuzz": _cmd_fuzz,
 }
 
@@ -497,6 +491,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rerun", action="store_true", help="with --out: run again even what is stored and current")
     p.add_argument("--serial", action="store_true",
                    help="run the engines one after the other in this process (default: 2 processes)")
+    p = sub.add_parser("export", help="cases as problems for any tool (docs/problems.md)")
+    p.add_argument("case", nargs="+", help="case names (stand-alone cases with a [compare] table)")
+    p.add_argument("--out", required=True, help="the folder: a sub-folder per case")
+    p.add_argument("--short", action="store_true", help="the compressed variant of each case (CI)")
+    engines_option(p, "engines whose runs are written as results files beside the reference solution's")
+    p.add_argument("--runs", help="store the runs in DIR, reusing those current there (as check --out)")
+    p = sub.add_parser("judge", help="judge results files of any tool against their problems (docs/problems.md)")
+    p.add_argument("results", nargs="+", help="results files (CSV, or HDF5 by their .h5 suffix)")
+    p.add_argument("--problems", help="what rsmcheck export wrote (default: $RSMCHECK_PROBLEMS_DIR, out/benchmark)")
+    p.add_argument("--refined", help="the same tool on the same problem at finer settings: its own error counts")
+    p.add_argument("--json", action="store_true", help="one JSON object {\"judgements\": [...]} on stdout")
     p = sub.add_parser("budget", help="each [compare] row's error budget: the engines' difference plus each "
                                       "one's integration error (docs/cases.md §1)")
     p.add_argument("case", nargs="*", help="case names (default: every stand-alone case with a [compare] table; "

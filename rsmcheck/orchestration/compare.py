@@ -404,6 +404,30 @@ def check_runs(case, reference: EngineRun, other: EngineRun, chained: bool = Fal
     return rows
 
 
+def _margin_text(x: float) -> str:
+    return "inf" if x == float("inf") else f"{x:.3g}" if x >= 0.01 else f"{x:.2e}"
+
+
+def row_lines(rows: Sequence[Check], pair_headers: bool = False, threshold: str = "tolerance",
+              every_formula: bool = False) -> list[str]:
+    """Rows as `rsmcheck check` and `rsmcheck judge` print them: a header, a line per row
+    (error, `threshold`, margin, verdict), how a tolerance not stated in the case file is made
+    (every one with `every_formula`), the samples left out; `pair_headers`: a line naming the
+    pair before each pair's rows."""
+    out = [f"  {'observable':20s} {'metric':8s} {'error':>10s} {threshold:>10s} {'margin':>8s}  result"]
+    for i, r in enumerate(rows):
+        if pair_headers and (i == 0 or rows[i - 1].engines != r.engines):
+            out.append(f"  {r.engines[0]} against {r.engines[1]}:")
+        out.append(f"  {r.observable:20s} {r.metric_label:8s} {r.error:10.3e} {r.tolerance:10.3e} "
+                   f"{_margin_text(r.margin):>8s}  "
+                   + ("pass" if r.passed else f"FAIL (worst at t = {r.worst_time:.4g} s, component {r.worst_component})"))
+        if r.tolerance_parts is not None and (every_formula or not r.tolerance_parts.stated):
+            out.append(f"  {'':20s} {threshold} = {r.tolerance_parts.formula()}")
+        if r.switch_note():
+            out.append(f"  {'':20s} {r.switch_note()}")
+    return out
+
+
 def engine_pairs(engines: Sequence[str]) -> list[tuple[str, str]]:
     """The pairs a cross-check compares: the first engine (the model under test) against
     each of the others."""

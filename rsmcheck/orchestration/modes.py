@@ -82,3 +82,26 @@ def arm_rows(configurations: Sequence[tuple[str, str, str]] = CONFIGURATIONS, n:
 def modes_report(options: Mapping[str, Mapping[str, Any]] | None = None) -> dict[str, Any]:
     """The JSON object of `rsmcheck modes --json` (docs/commands.md)."""
     return {"links": link_rows(options=options), "arms": arm_rows(options=options)}
+
+
+def modes_text(links: Sequence[Mapping[str, Any]], arms: Sequence[Mapping[str, Any]], engines: Sequence[str]) -> str:
+    """The tables of `rsmcheck modes`: link frequencies against the analytic ones, then the
+    coupled frequencies with each engine's difference from the first."""
+    out: list[str] = []
+    lk = [e for e in engines if f"{e}_hz" in links[0]]
+    out.append("Link eigenfrequencies [Hz]")
+    out.append(f"  {'basis':5s} {'mode':>4s} {'Table 2':>9s} {'analytic':>10s}" + "".join(f" {e[:10]:>10s}" for e in lk)
+               + "".join(f" {e[:5] + '-an':>9s}" for e in lk))
+    for r in links:
+        out.append(f"  {r['basis']:5s} {r['mode']:4d} {r['table2_hz']:9.2f} {r['analytic_hz']:10.4f}"
+                   + "".join(f" {r[e + '_hz']:10.4f}" for e in lk) + "".join(f" {100 * r[e + '_rel']:+8.4f}%" for e in lk))
+    ak = [e for e in engines if arms and f"{e}_hz" in arms[0]]
+    rk = [e for e in ak if arms and f"{e}_rel" in arms[0]]
+    out.append("Coupled frequencies of the robot at rest, undamped [Hz]"
+               + (f"; differences from {ak[0]}" if rk else ""))
+    out.append(f"  {'configuration':17s} {'mode':>4s}" + "".join(f" {e[:10]:>10s}" for e in ak)
+               + "".join(f" {e[:9] + ' diff':>14s}" for e in rk))
+    for r in arms:
+        out.append(f"  {r['configuration']:17s} {r['mode']:4d}" + "".join(f" {r[e + '_hz']:10.4f}" for e in ak)
+                   + "".join(f" {100 * r[e + '_rel']:+13.4f}%" for e in rk))
+    return "\n".join(out)
