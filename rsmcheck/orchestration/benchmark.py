@@ -42,7 +42,7 @@ from rsmcheck.core.plugins import default_engines
 from rsmcheck.core.results import Results, columns, read_results, write_results, write_results_h5
 from rsmcheck.core.store import EngineRun, dumps_json, machine, machine_text, write_text
 from rsmcheck.core.tolerances import pair_tolerance
-from rsmcheck.orchestration.compare import Check, check_runs, row_lines, unit_of
+from rsmcheck.orchestration.compare import Check, check_runs, not_checked, row_lines, unit_of
 from rsmcheck.orchestration.runs import get_runs
 
 PROBLEM_FORMAT = "rsmcheck-problem 1"
@@ -253,9 +253,10 @@ def export_cases(cases: Sequence[Case], short: bool, engines: Sequence[str], out
                  progress=None) -> list[str]:
     """`rsmcheck export`: the runs (rsmcheck.orchestration.runs.get_runs; the first default
     engine first), then each case's problem; one line per file written."""
-    for case in cases:  # every case looked at before anything runs
-        if case.phases or not case.variant(short).compare:
-            raise InputError(case.name, "compare", "only a stand-alone case with a [compare] table is a problem")
+    for case in cases:  # every case looked at before anything runs, as check looks at it
+        reason = not_checked(case, short)
+        if reason:
+            raise InputError(case.name, "compare", f"not a problem: {reason}")
     reference = default_engines()[0]
     engines = [reference] + [e for e in engines if e != reference]
     got = get_runs(cases, engines, short, run_dir, progress=progress)
