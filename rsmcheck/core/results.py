@@ -1,6 +1,6 @@
 """Results files: one tool's run of one benchmark problem, as any tool can write it.
 
-The format (docs/benchmark.md, "Results files"), version 1, CSV:
+The format (docs/problems.md, "Write a results file"), version 1, CSV:
 
     # rsmcheck-results 1
     # case: free_drift

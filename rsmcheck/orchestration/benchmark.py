@@ -1,5 +1,5 @@
 """The benchmark any tool can enter: `rsmcheck export` writes problems, `rsmcheck judge`
-judges the results files a tool sends back (docs/benchmark.md).
+judges the results files a tool sends back (docs/problems.md).
 
 A problem is one case's variant (short by default) handed to a tool that cannot run as a
 plug-in: a folder `DIR/CASE/` with
@@ -121,7 +121,7 @@ def problem_page(doc: Mapping[str, Any]) -> str:
     out = [f"# Problem {doc['case']} ({doc['variant']})", "", doc["description"], "",
            "Simulate the robot of De Bonis et al. (2021) as docs/physics.md defines it, with the parameters",
            "and the case file below, from t = 0 to "
-           f"t = {doc['duration_s']:g} s, and write a results file (docs/benchmark.md) with the observables",
+           f"t = {doc['duration_s']:g} s, and write a results file (docs/problems.md) with the observables",
            f"below at the {doc['output']['samples']} output samples of reference.csv "
            f"(every {doc['output']['period_s']:g} s from {doc['output']['first_s']:g} s).", "",
            "## Observables", "", "| observable | columns | unit | meaning |", "|---|---|---|---|"]

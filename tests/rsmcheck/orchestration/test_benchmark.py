@@ -1,4 +1,4 @@
-"""The benchmark for tools outside rsmcheck (rsmcheck.orchestration.benchmark, docs/benchmark.md):
+"""The benchmark for tools outside rsmcheck (rsmcheck.orchestration.benchmark, docs/problems.md):
 results files that read back bit for bit, `judge` on the in-tree engines' own exports giving
 `check`'s rows to the bit, a perturbed column failing its row alone, and every kind of bad
 results file one line, exit 2."""
